@@ -1,0 +1,349 @@
+"""Cyclone DDS transport for the bundled runtime, speaking exactly what ROS 2's rmw_cyclonedds_cpp speaks.
+
+- topic `rt/<fully qualified name>`, type `pkg::msg::dds_::T_` (final struct, real fields, so the
+  XTypes type information Cyclone attaches is the message's own);
+- payload: XCDR1 little endian with the encapsulation header, written and taken as raw bytes
+  (rosbags' numpy-aware codec does the (de)serialization, not Cyclone's per-element Python one);
+- QoS mapped one to one; DataRepresentation forced to XCDR1 (XCDR2 samples never reach ROS 2).
+
+Loopback only unless VIZZY_DDS_LAN=1: see loopback_config().
+"""
+
+from __future__ import annotations
+
+import ctypes as ct
+import os
+import threading
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from cyclonedds._clayer import ddspy_take, ddspy_write, ddspy_write_ts
+from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
+from cyclonedds.domain import Domain, DomainParticipant
+from cyclonedds.idl import IdlStruct, make_idl_struct
+from cyclonedds.idl.annotations import final
+import cyclonedds.idl.types as idl
+from cyclonedds.internal import DDS, dds_c_t
+from cyclonedds.pub import DataWriter, Publisher
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader, Subscriber
+from cyclonedds.topic import Topic
+from rosbags.interfaces import Nodetype
+
+from . import msgs
+
+ANY_STATE = SampleState.Any | ViewState.Any | InstanceState.Any
+MAX_AUTO_PARTICIPANTS = 60
+
+
+def loopback_config() -> str:
+    """Cyclone configuration that keeps every packet on 127.0.0.1: loopback interface, no multicast,
+    unicast discovery to the local participant ports only."""
+    return (
+        '<CycloneDDS><Domain id="any"><General>'
+        '<Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>'
+        '<AllowMulticast>false</AllowMulticast>'
+        '</General><Discovery>'
+        '<ParticipantIndex>auto</ParticipantIndex>'
+        f'<MaxAutoParticipantIndex>{MAX_AUTO_PARTICIPANTS}</MaxAutoParticipantIndex>'
+        '<Peers><Peer address="127.0.0.1"/></Peers>'
+        '</Discovery></Domain></CycloneDDS>'
+    )
+
+
+def lan_mode() -> bool:
+    """LAN mode is an explicit opt-in (VIZZY_DDS_LAN=1): then Cyclone's own defaults or the user's
+    CYCLONEDDS_URI decide the interfaces, as for any ROS 2 process."""
+    return os.environ.get('VIZZY_DDS_LAN', '') in ('1', 'true', 'yes')
+
+
+def domain_id() -> int:
+    raw = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
+    try:
+        value = int(raw)
+    except ValueError:
+        raise ValueError(f'ROS_DOMAIN_ID={raw!r} is not an integer') from None
+    if not 0 <= value <= 232:
+        raise ValueError(f'ROS_DOMAIN_ID={value} is outside 0..232')
+    return value
+
+
+_lock = threading.RLock()
+_participant: DomainParticipant | None = None
+_domain: Domain | None = None
+
+
+def participant() -> DomainParticipant:
+    """The process's one DDS participant (rmw_cyclonedds_cpp also uses one per context)."""
+    global _participant, _domain
+    with _lock:
+        if _participant is None:
+            did = domain_id()
+            if not lan_mode():
+                _domain = Domain(did, loopback_config())
+            _participant = DomainParticipant(did)
+        return _participant
+
+
+# --- types -------------------------------------------------------------------------------------
+
+_PRIM: dict[str, Any] = {
+    'bool': bool, 'byte': idl.byte, 'char': idl.uint8, 'int8': idl.int8, 'uint8': idl.uint8,
+    'int16': idl.int16, 'uint16': idl.uint16, 'int32': idl.int32, 'uint32': idl.uint32,
+    'int64': idl.int64, 'uint64': idl.uint64, 'float32': idl.float32, 'float64': idl.float64,
+}
+_idl_cache: dict[str, type[IdlStruct]] = {}
+
+
+def idl_type(typename: str) -> type[IdlStruct]:
+    """A final IdlStruct named like ROS 2's DDS type, with the message's real fields."""
+    typename = msgs.normalize_type_name(typename)
+    with _lock:
+        cls = _idl_cache.get(typename)
+        if cls is None:
+            reg = msgs.registry()
+            fields = {name: _idl_field(desc) for name, desc in reg.fields(typename)}
+            dds_name = msgs.dds_type_name(typename)
+            cls = make_idl_struct(dds_name.replace('::', '_'), dds_name, fields)
+            final(cls)
+            _idl_cache[typename] = cls
+        return cls
+
+
+def _idl_field(desc: Any) -> Any:
+    kind, rest = desc
+    if kind == Nodetype.BASE:
+        name, bound = rest
+        if name in ('string', 'bounded_string'):
+            return idl.bounded_str[bound] if bound else str
+        return _PRIM[name]
+    if kind == Nodetype.NAME:
+        return idl_type(rest)
+    sub, length = rest
+    if kind == Nodetype.ARRAY:
+        return idl.array[_idl_field(sub), length]
+    return idl.sequence[_idl_field(sub), length] if length else idl.sequence[_idl_field(sub)]
+
+
+# --- QoS ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class QoS:
+    """The QoS subset ROS 2 maps one to one onto DDS (rmw_cyclonedds_cpp's mapping)."""
+
+    reliable: bool = True
+    transient_local: bool = False
+    keep_all: bool = False
+    depth: int = 10
+    deadline_ns: int | None = None
+    lifespan_ns: int | None = None
+    liveliness_manual: bool = False
+    liveliness_lease_ns: int | None = None
+
+    def to_dds(self, user_data: bytes | None = None) -> Qos:
+        policies: list[Any] = [
+            Policy.Reliability.Reliable(max_blocking_time=100_000_000) if self.reliable
+            else Policy.Reliability.BestEffort,
+            Policy.Durability.TransientLocal if self.transient_local else Policy.Durability.Volatile,
+            Policy.History.KeepAll if self.keep_all else Policy.History.KeepLast(max(1, self.depth)),
+            Policy.DataRepresentation(use_cdrv0_representation=True),
+        ]
+        if self.deadline_ns:
+            policies.append(Policy.Deadline(self.deadline_ns))
+        if self.lifespan_ns:
+            policies.append(Policy.Lifespan(self.lifespan_ns))
+        if self.liveliness_lease_ns or self.liveliness_manual:
+            lease = self.liveliness_lease_ns or 2**63 - 1
+            policies.append(Policy.Liveliness.ManualByTopic(lease) if self.liveliness_manual
+                            else Policy.Liveliness.Automatic(lease))
+        if user_data:
+            policies.append(Policy.Userdata(user_data))
+        return Qos(*policies)
+
+    @staticmethod
+    def from_dds(qos: Qos) -> 'QoS':
+        """The ROS-relevant part of a discovered endpoint's QoS (bag recording, topic info)."""
+        reliable = transient_local = keep_all = False
+        depth = 1
+        for policy in qos:
+            if isinstance(policy, Policy.Reliability.Reliable):
+                reliable = True
+            elif policy == Policy.Durability.TransientLocal:
+                transient_local = True
+            elif isinstance(policy, Policy.History.KeepLast):
+                depth = policy.depth
+            elif policy == Policy.History.KeepAll:
+                keep_all = True
+        return QoS(reliable=reliable, transient_local=transient_local, keep_all=keep_all, depth=depth)
+
+
+def type_hash_user_data(typename: str) -> bytes:
+    """USER_DATA that rmw_cyclonedds_cpp (Jazzy) puts on every endpoint: `typehash=RIHS01_…;`."""
+    try:
+        return f'typehash={msgs.registry().store.hash_rihs01(msgs.normalize_type_name(typename))};'.encode()
+    except Exception:  # noqa: BLE001 - a hash is informative only, never a reason to fail
+        return b''
+
+
+# --- matched status (not wrapped by the Python binding) ------------------------------------------
+
+def _status_fn(name: str, struct: type) -> Any:
+    fn = getattr(DDS._dll_handle, name)
+    fn.restype = dds_c_t.returnv
+    fn.argtypes = [dds_c_t.entity, ct.POINTER(struct)]
+    return fn
+
+
+_pub_matched = _status_fn('dds_get_publication_matched_status', dds_c_t.publication_matched_status)
+_sub_matched = _status_fn('dds_get_subscription_matched_status', dds_c_t.subscription_matched_status)
+
+
+def _matched(fn: Any, struct: type, ref: int) -> int:
+    status = struct()
+    ret = fn(ref, ct.byref(status))
+    if ret < 0:
+        raise DDSException(ret, fn.__name__)
+    return int(status.current_count)
+
+
+
+
+# --- endpoints ---------------------------------------------------------------------------------
+
+_topics: dict[tuple[str, str], Topic] = {}
+
+
+def dds_topic_name(ros_topic: str) -> str:
+    if not ros_topic.startswith('/'):
+        raise ValueError(f'topic {ros_topic!r} is not fully qualified')
+    return 'rt' + ros_topic
+
+
+def ros_topic_name(dds_topic: str) -> str | None:
+    return dds_topic[2:] if dds_topic.startswith('rt/') else None
+
+
+def _topic(ros_topic: str, typename: str) -> Topic:
+    key = (ros_topic, typename)
+    with _lock:
+        topic = _topics.get(key)
+        if topic is None:
+            topic = Topic(participant(), dds_topic_name(ros_topic), idl_type(typename))
+            _topics[key] = topic
+        return topic
+
+
+class RawWriter:
+    """A DDS writer for a ROS topic that sends already serialized CDR bytes."""
+
+    def __init__(self, ros_topic: str, typename: str, qos: QoS) -> None:
+        self.topic_name = ros_topic
+        self.typename = msgs.normalize_type_name(typename)
+        self.qos = qos
+        self._writer = DataWriter(participant(), _topic(ros_topic, self.typename),
+                                  qos.to_dds(type_hash_user_data(self.typename)))
+
+    @property
+    def guid(self) -> bytes:
+        return self._writer.guid.bytes
+
+    def write(self, payload: bytes | bytearray | memoryview, timestamp_ns: int | None = None) -> None:
+        data = payload if isinstance(payload, bytes) else bytes(payload)
+        if len(data) % 4:
+            data += b'\0' * (4 - len(data) % 4)
+        ret = ddspy_write(self._writer._ref, data) if timestamp_ns is None \
+            else ddspy_write_ts(self._writer._ref, data, timestamp_ns)
+        if ret < 0:
+            raise DDSException(ret, f'writing to {self.topic_name}')
+
+    def matched_count(self) -> int:
+        return _matched(_pub_matched, dds_c_t.publication_matched_status, self._writer._ref)
+
+class RawReader:
+    """A DDS reader for a ROS topic handing out raw CDR bytes and their source timestamps."""
+
+    def __init__(self, ros_topic: str, typename: str, qos: QoS,
+                 on_data: Callable[['RawReader'], None] | None = None) -> None:
+        self.topic_name = ros_topic
+        self.typename = msgs.normalize_type_name(typename)
+        self.qos = qos
+        listener = Listener(on_data_available=lambda _r: on_data(self)) if on_data else None
+        self._reader = DataReader(participant(), _topic(ros_topic, self.typename),
+                                  qos.to_dds(type_hash_user_data(self.typename)), listener=listener)
+
+    @property
+    def entity(self) -> DataReader:
+        return self._reader
+
+    @property
+    def guid(self) -> bytes:
+        return self._reader.guid.bytes
+
+    def take(self, n: int = 64) -> list[tuple[bytes, int]]:
+        """Up to n samples as (cdr bytes, source timestamp ns); invalid (dispose) samples skipped."""
+        ret = ddspy_take(self._reader._ref, ANY_STATE, n)
+        if isinstance(ret, int):
+            raise DDSException(ret, f'taking from {self.topic_name}')
+        return [(data, info.source_timestamp) for data, info in ret if info.valid_data]
+
+    def matched_count(self) -> int:
+        return _matched(_sub_matched, dds_c_t.subscription_matched_status, self._reader._ref)
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A discovered DDS endpoint carrying a ROS topic."""
+
+    topic: str
+    typename: str
+    qos: QoS
+    guid: bytes
+    participant_guid: bytes
+    is_writer: bool
+
+
+class Discovery:
+    """Keeps the ROS topics seen on the DDS builtin publication/subscription topics."""
+
+    def __init__(self) -> None:
+        from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsPublication,
+                                        BuiltinTopicDcpsSubscription)
+        dp = participant()
+        self._readers = [(BuiltinDataReader(dp, BuiltinTopicDcpsPublication), True),
+                         (BuiltinDataReader(dp, BuiltinTopicDcpsSubscription), False)]
+        self._endpoints: dict[bytes, Endpoint] = {}
+
+    def endpoints(self) -> list[Endpoint]:
+        for reader, is_writer in self._readers:
+            for sample in reader.take(N=1000):
+                info = getattr(sample, 'sample_info', None)
+                alive = info is None or info.instance_state == InstanceState.Alive
+                key = sample.key.bytes
+                ros_topic = ros_topic_name(sample.topic_name or '')
+                typename = msgs.ros_type_from_dds(sample.type_name or '')
+                if not alive:
+                    self._endpoints.pop(key, None)
+                elif ros_topic and typename:
+                    self._endpoints[key] = Endpoint(ros_topic, typename, QoS.from_dds(sample.qos), key,
+                                                    sample.participant_key.bytes, is_writer)
+        return list(self._endpoints.values())
+
+    def topics(self) -> dict[str, str]:
+        """ROS topic name -> type name, for every topic with a writer or a reader."""
+        return {ep.topic: ep.typename for ep in self.endpoints()}
+
+
+def delete(entity: RawReader | RawWriter) -> None:
+    """Delete a reader or writer now (not at garbage collection), so peers see it go."""
+    inner = getattr(entity, '_reader', None) or getattr(entity, '_writer', None)
+    if inner is not None:
+        try:
+            inner._delete(inner._ref)
+        except Exception:  # noqa: BLE001 - already gone
+            pass
+
+
+__all__ = [
+    'QoS', 'RawReader', 'RawWriter', 'delete', 'dds_topic_name', 'domain_id', 'idl_type',
+    'lan_mode', 'loopback_config', 'participant', 'ros_topic_name', 'Publisher', 'Subscriber',
+]

@@ -1,0 +1,241 @@
+"""Message types for the bundled runtime: rosbags' Jazzy typestore plus our msgs/msg/*.msg.
+
+Nothing here is copied by hand from a .msg file: standard types come from rosbags'
+ROS 2 Jazzy store, ours are parsed at import time from the interface package.
+
+Each type gets an rclpy-like class (default-constructible, keyword arguments, primitive
+sequences as numpy arrays) that rosbags' generated CDR code both fills on deserialization
+and reads on serialization, so a message crosses the wire without per-element Python work.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+OUR_PACKAGE = 'active_vision_msgs'
+
+_NUMPY = {
+    'bool': np.bool_, 'byte': np.uint8, 'char': np.uint8, 'int8': np.int8, 'uint8': np.uint8,
+    'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32,
+    'int64': np.int64, 'uint64': np.uint64, 'float32': np.float32, 'float64': np.float64,
+}
+
+
+def msgs_dir() -> Path:
+    """Where active_vision_msgs' .msg files are: $VIZZY_MSGS_DIR, else the repository's msgs/msg."""
+    env = os.environ.get('VIZZY_MSGS_DIR')
+    if env:
+        return Path(env)
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        cand = parent / 'msgs' / 'msg'
+        if cand.is_dir():
+            return cand
+    raise FileNotFoundError(
+        'active_vision_msgs definitions not found: set VIZZY_MSGS_DIR to the msgs/msg folder')
+
+
+def normalize_type_name(name: str) -> str:
+    """'sensor_msgs/Image' or 'sensor_msgs/msg/Image' or 'sensor_msgs.msg.Image' -> 'sensor_msgs/msg/Image'."""
+    parts = name.replace('.', '/').split('/')
+    if len(parts) == 2:
+        parts = [parts[0], 'msg', parts[1]]
+    if len(parts) != 3 or not all(parts):
+        raise ValueError(f'not a message type name: {name!r} (expected pkg/msg/Type)')
+    return '/'.join(parts)
+
+
+def dds_type_name(typename: str) -> str:
+    """ROS 2 DDS type name, e.g. sensor_msgs/msg/Image -> sensor_msgs::msg::dds_::Image_."""
+    pkg, kind, name = normalize_type_name(typename).split('/')
+    return f'{pkg}::{kind}::dds_::{name}_'
+
+
+def ros_type_from_dds(dds_name: str) -> str | None:
+    """Inverse of dds_type_name; None for names that are not ROS 2 message types."""
+    parts = dds_name.split('::')
+    if len(parts) != 4 or parts[2] != 'dds_' or not parts[3].endswith('_'):
+        return None
+    return f'{parts[0]}/{parts[1]}/{parts[3][:-1]}'
+
+
+class _Registry:
+    """The typestore and the rclpy-like message classes built from it (lazily, thread-safe)."""
+
+    def __init__(self) -> None:
+        self.store = get_typestore(Stores.ROS2_JAZZY)
+        self._lock = threading.RLock()
+        self._classes: dict[str, type] = {}
+        self.ours: list[str] = []
+        self._load_ours()
+
+    def _load_ours(self) -> None:
+        try:
+            folder = msgs_dir()
+        except FileNotFoundError:
+            return
+        texts = {}
+        for path in sorted(folder.glob('*.msg')):
+            texts.update(get_types_from_msg(path.read_text(), f'{OUR_PACKAGE}/msg/{path.stem}'))
+        self.store.register(texts)
+        self.ours = sorted(texts)
+
+    def fields(self, typename: str) -> list[tuple[str, Any]]:
+        return self.store.fielddefs[typename][1]
+
+    def constants(self, typename: str) -> list[tuple[str, str, Any]]:
+        return self.store.fielddefs[typename][0]
+
+    def get_class(self, typename: str) -> type:
+        typename = normalize_type_name(typename)
+        with self._lock:
+            cls = self._classes.get(typename)
+            if cls is None:
+                if typename not in self.store.fielddefs:
+                    raise KeyError(f'unknown message type {typename!r}')
+                cls = _make_class(self, typename)
+                self._classes[typename] = cls
+                # rosbags' generated deserializer instantiates store.types[...] positionally.
+                self.store.types[typename] = cls
+                self.store.cache.pop(typename, None)
+                for nested in _nested_names(self.fields(typename)):
+                    self.get_class(nested)
+            return cls
+
+
+def _nested_names(fields: list[tuple[str, Any]]) -> list[str]:
+    out = []
+    for _, desc in fields:
+        while desc[0] in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+            desc = desc[1][0]
+        if desc[0] == Nodetype.NAME:
+            out.append(desc[1])
+    return out
+
+
+def _default_factory(registry: _Registry, desc: Any) -> Any:
+    """A zero-argument callable giving the rclpy default value for one field."""
+    kind, rest = desc
+    if kind == Nodetype.BASE:
+        name = rest[0]
+        if name in ('string', 'bounded_string'):
+            return str
+        if name == 'bool':
+            return bool
+        if name in ('float32', 'float64'):
+            return float
+        return int
+    if kind == Nodetype.NAME:
+        return lambda: registry.get_class(rest)()
+    sub, length = rest
+    if sub[0] == Nodetype.BASE and sub[1][0] in _NUMPY:
+        dtype = _NUMPY[sub[1][0]]
+        size = length if kind == Nodetype.ARRAY else 0
+        return lambda: np.zeros(size, dtype=dtype)
+    if kind == Nodetype.ARRAY:
+        item = _default_factory(registry, sub)
+        return lambda: [item() for _ in range(length)]
+    return list
+
+
+def _make_class(registry: _Registry, typename: str) -> type:
+    fields = registry.fields(typename)
+    names = [name for name, _ in fields]
+    factories = {name: _default_factory(registry, desc) for name, desc in fields}
+    pkg, _, short = typename.split('/')
+
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        if len(args) > len(names):
+            raise TypeError(f'{typename} takes at most {len(names)} positional arguments')
+        for name, value in zip(names, args):
+            setattr(self, name, value)
+        for name in names[len(args):]:
+            value = kwargs.pop(name, None)
+            setattr(self, name, factories[name]() if value is None else value)
+        if kwargs:
+            raise TypeError(f'{typename} has no field(s) {sorted(kwargs)}')
+
+    def __eq__(self: Any, other: object) -> bool:
+        if getattr(other, '__msgtype__', None) != typename:
+            return NotImplemented
+        for name in names:
+            a, b = getattr(self, name), getattr(other, name)
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+                if not np.array_equal(np.asarray(a), np.asarray(b)):
+                    return False
+            elif a != b:
+                return False
+        return True
+
+    def __repr__(self: Any) -> str:
+        inner = ', '.join(f'{n}={getattr(self, n)!r}' for n in names)
+        return f'{pkg}.msg.{short}({inner})'
+
+    namespace: dict[str, Any] = {
+        '__slots__': tuple(names),
+        '__init__': __init__,
+        '__eq__': __eq__,
+        '__hash__': None,
+        '__repr__': __repr__,
+        '__msgtype__': typename,
+        '__module__': f'{pkg}.msg',
+        '_fields_and_field_types': {name: str(desc) for name, desc in fields},
+        'get_fields_and_field_types': classmethod(lambda cls: dict(cls._fields_and_field_types)),
+    }
+    for cname, _ctype, cvalue in registry.constants(typename):
+        namespace[cname] = cvalue
+    return type(short, (), namespace)
+
+
+_registry: _Registry | None = None
+_registry_lock = threading.Lock()
+
+
+def registry() -> _Registry:
+    global _registry
+    with _registry_lock:
+        if _registry is None:
+            _registry = _Registry()
+        return _registry
+
+
+def get_message(typename: str) -> type:
+    """The bundled runtime's class for a message type ('sensor_msgs/msg/Image')."""
+    return registry().get_class(typename)
+
+
+def type_of(msg_or_cls: Any) -> str:
+    """'pkg/msg/Type' of a message instance or class (bundled or real rclpy)."""
+    name = getattr(msg_or_cls, '__msgtype__', None)
+    if name:
+        return name
+    cls = msg_or_cls if isinstance(msg_or_cls, type) else type(msg_or_cls)
+    module = cls.__module__.split('.')
+    return f'{module[0]}/msg/{cls.__name__}'
+
+
+def serialize(msg: Any, typename: str | None = None) -> memoryview:
+    """XCDR1 little-endian bytes with the 4-byte encapsulation header, as ROS 2 sends them."""
+    reg = registry()
+    typename = typename or type_of(msg)
+    reg.get_class(typename)
+    return reg.store.serialize_cdr(msg, typename)
+
+
+def deserialize(raw: bytes | memoryview, typename: str) -> Any:
+    """Message object from CDR bytes; primitive arrays are numpy views over `raw` (no copy)."""
+    reg = registry()
+    reg.get_class(typename)
+    return reg.store.deserialize_cdr(raw, typename)
+
+
+def message_definition(typename: str) -> str:
+    """The concatenated .msg text rosbag2 stores as an MCAP schema (ros2msg encoding)."""
+    return registry().store.generate_msgdef(normalize_type_name(typename), ros_version=2)[0]
