@@ -1,0 +1,78 @@
+"""rclpy.context.Context: init/shutdown state, global --ros-args, and the wake-up condition executors wait on."""
+
+from __future__ import annotations
+
+import os
+import threading
+from typing import TYPE_CHECKING, Any, Callable
+
+from . import arguments
+
+if TYPE_CHECKING:
+    from .node import Node
+
+
+class Context:
+    def __init__(self) -> None:
+        self._ok = False
+        self._lock = threading.RLock()
+        self.wake = threading.Condition(self._lock)
+        self.args = arguments.RosArguments()
+        self.nodes: list['Node'] = []
+        self._on_shutdown: list[Callable[[], None]] = []
+        self._discovery: Any = None
+        self.generation = 0  # bumped whenever something is ready to run
+
+    def init(self, args: list[str] | None = None, domain_id: int | None = None) -> None:
+        with self._lock:
+            if self._ok:
+                raise RuntimeError('Context.init() must only be called once')
+            if domain_id is not None:
+                os.environ['ROS_DOMAIN_ID'] = str(domain_id)
+            self.args = arguments.parse(args)
+            if self.args.log_level:
+                from .logging import set_default_level
+                set_default_level(self.args.log_level)
+            self._ok = True
+
+    def ok(self) -> bool:
+        return self._ok
+
+    def notify(self) -> None:
+        with self.wake:
+            self.generation += 1
+            self.wake.notify_all()
+
+    def on_shutdown(self, callback: Callable[[], None]) -> None:
+        self._on_shutdown.append(callback)
+
+    def shutdown(self) -> None:
+        with self._lock:
+            if not self._ok:
+                raise RuntimeError('Context must be initialized before it can be shutdown')
+            self._ok = False
+            callbacks, self._on_shutdown = self._on_shutdown, []
+        for node in list(self.nodes):
+            node.destroy_node()
+        for cb in callbacks:
+            cb()
+        self.notify()
+
+    def try_shutdown(self) -> None:
+        if self._ok:
+            self.shutdown()
+
+    def discovery(self) -> Any:
+        """DDS builtin-topic view of the graph, created on first use (topic lists, counts)."""
+        with self._lock:
+            if self._discovery is None:
+                from .. import dds
+                self._discovery = dds.Discovery()
+            return self._discovery
+
+
+_default_context = Context()
+
+
+def get_default_context() -> Context:
+    return _default_context

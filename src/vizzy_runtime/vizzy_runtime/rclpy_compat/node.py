@@ -1,0 +1,529 @@
+"""rclpy.node.Node on Cyclone DDS: publishers, subscriptions, timers, parameters, logger, clock.
+
+Callbacks run in the executor's thread (spin), never in Cyclone's listener threads: a
+subscription's listener only flags itself ready and wakes the executor.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time as _time
+from typing import Any, Callable, Iterable
+
+from .. import dds, msgs
+from . import exceptions as exc
+from .context import Context, get_default_context
+from .duration import Duration
+from .logging import RcutilsLogger
+from .names import expand, normalize_namespace, remap, validate_node_name
+from .parameter import FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, SetParametersResult
+from .qos import QoSProfile, as_profile, qos_profile_clock
+from .time import Clock, ClockType, ROSClock
+
+
+class Publisher:
+    def __init__(self, node: 'Node', msg_type: type, topic: str, qos: QoSProfile) -> None:
+        self.msg_type = msg_type
+        self.typename = msgs.type_of(msg_type)
+        self.topic = topic
+        self.qos_profile = qos
+        self._node = node
+        self._writer = dds.RawWriter(topic, self.typename, qos.to_dds())
+
+    @property
+    def topic_name(self) -> str:
+        return self.topic
+
+    @property
+    def guid(self) -> bytes:
+        return self._writer.guid
+
+    def publish(self, msg: Any) -> None:
+        """Publish a message of this publisher's type, or already serialized CDR bytes."""
+        if isinstance(msg, (bytes, bytearray, memoryview)):
+            self._writer.write(msg)
+            return
+        if msgs.type_of(msg) != self.typename:
+            raise TypeError(f'{self._node.get_name()}: publisher on {self.topic} expects '
+                            f'{self.typename}, got {msgs.type_of(msg)}')
+        self._writer.write(msgs.serialize(msg, self.typename))
+
+    def get_subscription_count(self) -> int:
+        return self._writer.matched_count()
+
+    def wait_for_subscribers(self, count: int = 1, timeout_sec: float = 5.0) -> bool:
+        """Block until `count` readers matched (discovery is asynchronous)."""
+        deadline = _time.monotonic() + timeout_sec
+        while self.get_subscription_count() < count:
+            if _time.monotonic() > deadline:
+                return False
+            _time.sleep(0.005)
+        return True
+
+    def destroy(self) -> bool:
+        return self._node.destroy_publisher(self)
+
+
+class Subscription:
+    def __init__(self, node: 'Node', msg_type: type, topic: str, callback: Callable[[Any], None],
+                 qos: QoSProfile, raw: bool) -> None:
+        self.msg_type = msg_type
+        self.typename = msgs.type_of(msg_type)
+        self.topic = topic
+        self.callback = callback
+        self.qos_profile = qos
+        self.raw = raw
+        self._node = node
+        self._ready = True  # take whatever arrived before the listener was attached
+        self._reader = dds.RawReader(topic, self.typename, qos.to_dds(), on_data=self._on_data)
+
+    @property
+    def topic_name(self) -> str:
+        return self.topic
+
+    @property
+    def guid(self) -> bytes:
+        return self._reader.guid
+
+    def _on_data(self, _reader: dds.RawReader) -> None:
+        self._ready = True
+        self._node.context.notify()
+
+    def get_publisher_count(self) -> int:
+        return self._reader.matched_count()
+
+    def wait_for_publishers(self, count: int = 1, timeout_sec: float = 5.0) -> bool:
+        deadline = _time.monotonic() + timeout_sec
+        while self.get_publisher_count() < count:
+            if _time.monotonic() > deadline:
+                return False
+            _time.sleep(0.005)
+        return True
+
+    def take_and_dispatch(self, limit: int = 256) -> int:
+        """Run the callback for each waiting sample. A sample that cannot be decoded is logged and
+        skipped; an exception in the user callback is logged and does not stop the node."""
+        if not self._ready:
+            return 0
+        self._ready = False
+        samples = self._reader.take(limit)
+        if len(samples) == limit:
+            self._ready = True
+        for raw, _stamp in samples:
+            if self.raw:
+                message: Any = raw
+            else:
+                try:
+                    message = msgs.deserialize(raw, self.typename)
+                except Exception as err:  # noqa: BLE001 - one bad message never kills a node
+                    self._node.get_logger().error(
+                        f'[{self.topic}] dropped a malformed {self.typename} ({len(raw)} bytes): {err}')
+                    continue
+            self._node._run_callback(self.callback, message, f'subscription {self.topic}')
+        return len(samples)
+
+    def destroy(self) -> bool:
+        return self._node.destroy_subscription(self)
+
+
+class Timer:
+    def __init__(self, node: 'Node', period_sec: float, callback: Callable[[], Any], clock: Clock,
+                 autostart: bool = True) -> None:
+        if not period_sec > 0 or not math.isfinite(period_sec):
+            raise ValueError(f'timer period must be a positive number of seconds, got {period_sec!r}')
+        self.timer_period_ns = int(period_sec * 1e9)
+        self.callback = callback
+        self.clock = clock
+        self._node = node
+        self._canceled = not autostart
+        self._next = clock.now().nanoseconds + self.timer_period_ns
+
+    def is_canceled(self) -> bool:
+        return self._canceled
+
+    def cancel(self) -> None:
+        self._canceled = True
+
+    def reset(self) -> None:
+        self._canceled = False
+        self._next = self.clock.now().nanoseconds + self.timer_period_ns
+        self._node.context.notify()
+
+    def is_ready(self) -> bool:
+        return not self._canceled and self.time_until_next_call() <= 0
+
+    def time_until_next_call(self) -> int:
+        now = self.clock.now().nanoseconds
+        if now + self.timer_period_ns < self._next - self.timer_period_ns:
+            self._next = now + self.timer_period_ns  # the clock jumped back (sim time restarted)
+        return self._next - now
+
+    def call(self) -> None:
+        now = self.clock.now().nanoseconds
+        missed = max(0, (now - self._next) // self.timer_period_ns)
+        self._next += (missed + 1) * self.timer_period_ns
+        self._node._run_callback(self.callback, None, 'timer')
+
+    def destroy(self) -> bool:
+        return self._node.destroy_timer(self)
+
+
+_TYPE_NAMES = {t: t.name.lower() for t in Parameter.Type}
+
+
+class Node:
+    """rclpy.node.Node (the subset our nodes use, same signatures)."""
+
+    PARAM_REL_TOL = 1e-6
+
+    def __init__(self, node_name: str, *, context: Context | None = None,
+                 cli_args: list[str] | None = None, namespace: str | None = None,
+                 use_global_arguments: bool = True, enable_rosout: bool = True,
+                 start_parameter_services: bool = True,
+                 parameter_overrides: list[Parameter] | None = None,
+                 allow_undeclared_parameters: bool = False,
+                 automatically_declare_parameters_from_overrides: bool = False,
+                 **_ignored: Any) -> None:
+        from . import arguments
+        self.context = context or get_default_context()
+        if not self.context.ok():
+            raise RuntimeError('rclpy.init() has not been called (or the context was shut down)')
+        local = arguments.parse(['--ros-args', *cli_args] if cli_args and '--ros-args' not in cli_args
+                                else cli_args)
+        merged = arguments.RosArguments()
+        if use_global_arguments:
+            merged.remaps.extend(self.context.args.remaps)
+            merged.params.extend(self.context.args.params)
+        merged.remaps[:0] = local.remaps  # node-local rules take precedence
+        merged.params.extend(local.params)
+        self._args = merged
+
+        validate_node_name(node_name)
+        self._name = merged.node_name(node_name)
+        validate_node_name(self._name)
+        self._namespace = normalize_namespace(merged.namespace(node_name, namespace or '/'))
+        self._logger = RcutilsLogger(self._logger_name())
+        self._lock = threading.RLock()
+        self.publishers: list[Publisher] = []
+        self.subscriptions: list[Subscription] = []
+        self.timers: list[Timer] = []
+        self._clock = ROSClock()
+        self._clock_sub: Subscription | None = None
+        self._destroyed = False
+
+        self._parameters: dict[str, Parameter] = {}
+        self._descriptors: dict[str, Any] = {}
+        self._set_callbacks: list[Callable[[list[Parameter]], Any]] = []
+        self._allow_undeclared = allow_undeclared_parameters
+        self._overrides = merged.parameter_overrides(self.get_fully_qualified_name())
+        for p in parameter_overrides or []:
+            self._overrides[p.name] = p.value
+        if automatically_declare_parameters_from_overrides:
+            for name, value in self._overrides.items():
+                if name != 'use_sim_time':
+                    self.declare_parameter(name, value)
+        self.declare_parameter('use_sim_time', False, ParameterDescriptor(
+            description='Follow /clock (simulation or bag time) instead of the system clock.'))
+        self.add_on_set_parameters_callback(self._on_use_sim_time)
+        self._apply_sim_time(bool(self.get_parameter('use_sim_time').value))
+        with self.context.wake:
+            self.context.nodes.append(self)
+        self.context.notify()
+
+    # --- identity ---------------------------------------------------------------------------
+    def get_name(self) -> str:
+        return self._name
+
+    def get_namespace(self) -> str:
+        return self._namespace
+
+    def get_fully_qualified_name(self) -> str:
+        return f'{self._namespace.rstrip("/")}/{self._name}'
+
+    def _logger_name(self) -> str:
+        ns = self._namespace.strip('/').replace('/', '.')
+        return f'{ns}.{self._name}' if ns else self._name
+
+    def get_logger(self) -> RcutilsLogger:
+        return self._logger
+
+    def get_clock(self) -> Clock:
+        return self._clock
+
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str:
+        fqn = expand(topic, self._name, self._namespace)
+        return fqn if only_expand else remap(fqn, self._args.remaps, self._name, self._namespace)
+
+    # --- entities ---------------------------------------------------------------------------
+    def create_publisher(self, msg_type: type, topic: str, qos_profile: QoSProfile | int,
+                         **_ignored: Any) -> Publisher:
+        pub = Publisher(self, msg_type, self.resolve_topic_name(topic), as_profile(qos_profile))
+        with self._lock:
+            self.publishers.append(pub)
+        self.context.notify()
+        return pub
+
+    def create_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
+                            qos_profile: QoSProfile | int, *, raw: bool = False,
+                            **_ignored: Any) -> Subscription:
+        sub = Subscription(self, msg_type, self.resolve_topic_name(topic), callback,
+                           as_profile(qos_profile), raw)
+        with self._lock:
+            self.subscriptions.append(sub)
+        self.context.notify()
+        return sub
+
+    def create_timer(self, timer_period_sec: float, callback: Callable[[], Any],
+                     callback_group: Any = None, clock: Clock | None = None,
+                     autostart: bool = True) -> Timer:
+        timer = Timer(self, timer_period_sec, callback, clock or self._clock, autostart)
+        with self._lock:
+            self.timers.append(timer)
+        self.context.notify()
+        return timer
+
+    def create_wall_timer(self, timer_period_sec: float, callback: Callable[[], Any]) -> Timer:
+        return self.create_timer(timer_period_sec, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def destroy_publisher(self, publisher: Publisher) -> bool:
+        with self._lock:
+            if publisher not in self.publishers:
+                return False
+            self.publishers.remove(publisher)
+        dds.delete(publisher._writer)
+        return True
+
+    def destroy_subscription(self, subscription: Subscription) -> bool:
+        with self._lock:
+            if subscription not in self.subscriptions:
+                return False
+            self.subscriptions.remove(subscription)
+        dds.delete(subscription._reader)
+        return True
+
+    def destroy_timer(self, timer: Timer) -> bool:
+        with self._lock:
+            if timer not in self.timers:
+                return False
+            timer.cancel()
+            self.timers.remove(timer)
+        return True
+
+    def destroy_node(self) -> None:
+        if self._destroyed:
+            return
+        self._destroyed = True
+        for pub in list(self.publishers):
+            self.destroy_publisher(pub)
+        for sub in list(self.subscriptions):
+            self.destroy_subscription(sub)
+        for timer in list(self.timers):
+            self.destroy_timer(timer)
+        with self.context.wake:
+            if self in self.context.nodes:
+                self.context.nodes.remove(self)
+        self.context.notify()
+
+    def _run_callback(self, callback: Callable[..., Any], arg: Any, what: str) -> None:
+        try:
+            callback() if what == 'timer' else callback(arg)
+        except (KeyboardInterrupt, SystemExit, exc.ExternalShutdownException):
+            raise
+        except Exception as err:  # noqa: BLE001 - keep the node alive, say what failed
+            self._logger.error(f'{what} callback raised {type(err).__name__}: {err}')
+
+    # --- graph ------------------------------------------------------------------------------
+    def get_topic_names_and_types(self, no_demangle: bool = False) -> list[tuple[str, list[str]]]:
+        topics: dict[str, set[str]] = {}
+        for ep in self.context.discovery().endpoints():
+            topics.setdefault(ep.topic, set()).add(ep.typename)
+        return sorted((t, sorted(types)) for t, types in topics.items())
+
+    def count_publishers(self, topic_name: str) -> int:
+        fqn = self.resolve_topic_name(topic_name)
+        return sum(1 for ep in self.context.discovery().endpoints() if ep.is_writer and ep.topic == fqn)
+
+    def count_subscribers(self, topic_name: str) -> int:
+        fqn = self.resolve_topic_name(topic_name)
+        return sum(1 for ep in self.context.discovery().endpoints() if not ep.is_writer and ep.topic == fqn)
+
+    # --- parameters -------------------------------------------------------------------------
+    def declare_parameter(self, name: str, value: Any = None, descriptor: Any = None,
+                          ignore_override: bool = False) -> Parameter:
+        if name in self._parameters:
+            raise exc.ParameterAlreadyDeclaredException(name)
+        descriptor = descriptor or ParameterDescriptor()
+        descriptor.name = name
+        if isinstance(value, Parameter.Type):
+            declared_type, value = value, None
+        elif value is None:
+            declared_type = Parameter.Type(descriptor.type) if descriptor.type else Parameter.Type.NOT_SET
+        else:
+            declared_type = Parameter.Type.from_parameter_value(value)
+        if descriptor.type == 0 and not descriptor.dynamic_typing:
+            descriptor.type = int(declared_type)
+        if not ignore_override and name in self._overrides:
+            value = self._coerce(name, self._overrides[name], Parameter.Type(descriptor.type))
+        param = Parameter(name, Parameter.Type.from_parameter_value(value) if value is not None
+                          else Parameter.Type.NOT_SET, value)
+        self._check(param, descriptor)
+        result = self._call_set_callbacks([param])
+        if not result.successful:
+            raise exc.InvalidParameterValueException(name, value, result.reason)
+        self._descriptors[name] = descriptor
+        self._parameters[name] = param
+        return param
+
+    def declare_parameters(self, namespace: str, parameters: Iterable[tuple], ignore_override: bool = False) -> list[Parameter]:
+        out = []
+        for entry in parameters:
+            name = f'{namespace}.{entry[0]}' if namespace else entry[0]
+            value = entry[1] if len(entry) > 1 else None
+            descriptor = entry[2] if len(entry) > 2 else None
+            out.append(self.declare_parameter(name, value, descriptor, ignore_override))
+        return out
+
+    def undeclare_parameter(self, name: str) -> None:
+        if name not in self._parameters:
+            raise exc.ParameterNotDeclaredException(name)
+        if self._descriptors[name].read_only:
+            raise exc.ParameterImmutableException(name)
+        del self._parameters[name]
+        del self._descriptors[name]
+
+    def has_parameter(self, name: str) -> bool:
+        return name in self._parameters
+
+    def get_parameter(self, name: str) -> Parameter:
+        if name in self._parameters:
+            return self._parameters[name]
+        if self._allow_undeclared:
+            return Parameter(name, Parameter.Type.NOT_SET, None)
+        raise exc.ParameterNotDeclaredException(name)
+
+    def get_parameters(self, names: Iterable[str]) -> list[Parameter]:
+        return [self.get_parameter(n) for n in names]
+
+    def get_parameter_or(self, name: str, alternative_value: Parameter | None = None) -> Parameter:
+        if name in self._parameters:
+            return self._parameters[name]
+        return alternative_value or Parameter(name, Parameter.Type.NOT_SET, None)
+
+    def describe_parameter(self, name: str) -> Any:
+        if name not in self._descriptors:
+            raise exc.ParameterNotDeclaredException(name)
+        return self._descriptors[name]
+
+    def add_on_set_parameters_callback(self, callback: Callable[[list[Parameter]], Any]) -> None:
+        self._set_callbacks.insert(0, callback)
+
+    def remove_on_set_parameters_callback(self, callback: Callable[[list[Parameter]], Any]) -> None:
+        self._set_callbacks.remove(callback)
+
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[Any]:
+        return [self._set_one(p) for p in parameter_list]
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> Any:
+        for p in parameter_list:
+            res = self._validate_set(p)
+            if not res.successful:
+                return res
+        result = self._call_set_callbacks(parameter_list)
+        if result.successful:
+            for p in parameter_list:
+                self._store(p)
+        return result
+
+    def _set_one(self, param: Parameter) -> Any:
+        res = self._validate_set(param)
+        if not res.successful:
+            return res
+        result = self._call_set_callbacks([param])
+        if result.successful:
+            self._store(param)
+        return result
+
+    def _store(self, param: Parameter) -> None:
+        if param.name not in self._parameters:
+            self._descriptors[param.name] = ParameterDescriptor(name=param.name, type=int(param.type_))
+        self._parameters[param.name] = param
+
+    def _validate_set(self, param: Parameter) -> Any:
+        if param.name not in self._parameters:
+            if not self._allow_undeclared:
+                return SetParametersResult(successful=False, reason=f"parameter '{param.name}' has not been declared")
+            return SetParametersResult(successful=True)
+        try:
+            self._check(param, self._descriptors[param.name])
+        except exc.ParameterException as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _coerce(self, name: str, value: Any, declared: Parameter.Type) -> Any:
+        if declared == Parameter.Type.DOUBLE and isinstance(value, int) and not isinstance(value, bool):
+            return float(value)
+        if declared == Parameter.Type.DOUBLE_ARRAY and isinstance(value, list):
+            return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value]
+        return value
+
+    def _check(self, param: Parameter, descriptor: Any) -> None:
+        if descriptor.read_only and param.name in self._parameters:
+            raise exc.ParameterImmutableException(param.name)
+        declared = Parameter.Type(descriptor.type)
+        if (not descriptor.dynamic_typing and declared != Parameter.Type.NOT_SET
+                and param.type_ not in (declared, Parameter.Type.NOT_SET)):
+            raise exc.InvalidParameterTypeException(
+                param.name, f'expected {_TYPE_NAMES[declared]}, got {_TYPE_NAMES[param.type_]} ({param.value!r})')
+        value = param.value
+        for rng in list(descriptor.floating_point_range):
+            if param.type_ == Parameter.Type.DOUBLE and not _in_range(value, rng.from_value, rng.to_value, rng.step, True):
+                raise exc.InvalidParameterValueException(
+                    param.name, value, f'outside [{rng.from_value}, {rng.to_value}]' + (f' step {rng.step}' if rng.step else ''))
+        for rng in list(descriptor.integer_range):
+            if param.type_ == Parameter.Type.INTEGER and not _in_range(value, rng.from_value, rng.to_value, rng.step, False):
+                raise exc.InvalidParameterValueException(
+                    param.name, value, f'outside [{rng.from_value}, {rng.to_value}]' + (f' step {rng.step}' if rng.step else ''))
+
+    def _call_set_callbacks(self, params: list[Parameter]) -> Any:
+        for cb in list(self._set_callbacks):
+            result = cb(params)
+            if result is None or not getattr(result, 'successful', False):
+                reason = getattr(result, 'reason', '') if result is not None else 'callback returned None'
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    # --- sim time ---------------------------------------------------------------------------
+    def _on_use_sim_time(self, params: list[Parameter]) -> Any:
+        for p in params:
+            if p.name == 'use_sim_time' and p.value is not None:
+                if p.type_ != Parameter.Type.BOOL:
+                    return SetParametersResult(successful=False, reason='use_sim_time must be a bool')
+                if 'use_sim_time' in self._parameters:
+                    self._apply_sim_time(bool(p.value))
+        return SetParametersResult(successful=True)
+
+    def _apply_sim_time(self, enabled: bool) -> None:
+        if enabled and self._clock_sub is None:
+            clock_type = msgs.get_message('rosgraph_msgs/msg/Clock')
+            self._clock_sub = self.create_subscription(clock_type, '/clock', self._on_clock, qos_profile_clock)
+        elif not enabled and self._clock_sub is not None:
+            self.destroy_subscription(self._clock_sub)
+            self._clock_sub = None
+            self._clock._set_ros_time_override(None)
+
+    def _on_clock(self, msg: Any) -> None:
+        self._clock._set_ros_time_override(msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+
+
+def _in_range(value: float, lo: float, hi: float, step: float, is_float: bool) -> bool:
+    tol = Node.PARAM_REL_TOL * max(1.0, abs(lo), abs(hi)) if is_float else 0
+    if value < lo - tol or value > hi + tol:
+        return False
+    if step and abs(value - hi) > tol:
+        k = (value - lo) / step
+        return abs(k - round(k)) <= (1e-6 if is_float else 0)
+    return True
+
+
+__all__ = ['Node', 'Publisher', 'Subscription', 'Timer', 'Duration', 'FloatingPointRange', 'IntegerRange']

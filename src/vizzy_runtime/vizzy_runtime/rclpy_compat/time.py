@@ -1,0 +1,125 @@
+"""rclpy.time.Time and rclpy.clock: system, steady and ROS clocks (ROS clock follows /clock with use_sim_time)."""
+
+from __future__ import annotations
+
+import threading
+import time as _time
+from enum import IntEnum
+from typing import Any
+
+from .. import msgs
+from .duration import Duration
+
+
+class ClockType(IntEnum):
+    UNINITIALIZED = 0
+    ROS_TIME = 1
+    SYSTEM_TIME = 2
+    STEADY_TIME = 3
+
+
+class Time:
+    def __init__(self, *, seconds: float = 0, nanoseconds: int = 0,
+                 clock_type: ClockType = ClockType.SYSTEM_TIME) -> None:
+        total = int(seconds * 1_000_000_000) + int(nanoseconds)
+        if total < 0:
+            raise ValueError('Time cannot be negative')
+        self._ns = total
+        self.clock_type = clock_type
+
+    @property
+    def nanoseconds(self) -> int:
+        return self._ns
+
+    def seconds_nanoseconds(self) -> tuple[int, int]:
+        return divmod(self._ns, 1_000_000_000)
+
+    def to_msg(self) -> Any:
+        sec, nsec = divmod(self._ns, 1_000_000_000)
+        return msgs.get_message('builtin_interfaces/msg/Time')(sec=sec, nanosec=nsec)
+
+    @classmethod
+    def from_msg(cls, msg: Any, clock_type: ClockType = ClockType.ROS_TIME) -> 'Time':
+        return cls(seconds=msg.sec, nanoseconds=msg.nanosec, clock_type=clock_type)
+
+    def __add__(self, other: Duration) -> 'Time':
+        return Time(nanoseconds=self._ns + other.nanoseconds, clock_type=self.clock_type)
+
+    def __sub__(self, other: 'Time | Duration') -> Any:
+        if isinstance(other, Time):
+            if other.clock_type != self.clock_type:
+                raise TypeError("Can't subtract times with different clock types")
+            return Duration(nanoseconds=self._ns - other._ns)
+        return Time(nanoseconds=self._ns - other.nanoseconds, clock_type=self.clock_type)
+
+    def _cmp(self, other: 'Time') -> int:
+        if not isinstance(other, Time):
+            raise TypeError(f'cannot compare Time with {type(other).__name__}')
+        if other.clock_type != self.clock_type:
+            raise TypeError("Can't compare times with different clock types")
+        return (self._ns > other._ns) - (self._ns < other._ns)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Time) and self._cmp(other) == 0
+
+    def __lt__(self, other: 'Time') -> bool:
+        return self._cmp(other) < 0
+
+    def __le__(self, other: 'Time') -> bool:
+        return self._cmp(other) <= 0
+
+    def __gt__(self, other: 'Time') -> bool:
+        return self._cmp(other) > 0
+
+    def __ge__(self, other: 'Time') -> bool:
+        return self._cmp(other) >= 0
+
+    def __hash__(self) -> int:
+        return hash((self._ns, self.clock_type))
+
+    def __repr__(self) -> str:
+        return f'Time(nanoseconds={self._ns}, clock_type={self.clock_type.name})'
+
+
+class Clock:
+    """rclpy.clock.Clock. A ROS_TIME clock reads the latest /clock once sim time is on."""
+
+    def __init__(self, *, clock_type: ClockType = ClockType.SYSTEM_TIME) -> None:
+        self.clock_type = clock_type
+        self._sim_ns: int | None = None
+        self._changed = threading.Condition()
+
+    def now(self) -> Time:
+        if self.clock_type == ClockType.STEADY_TIME:
+            return Time(nanoseconds=_time.monotonic_ns(), clock_type=self.clock_type)
+        if self.clock_type == ClockType.ROS_TIME and self._sim_ns is not None:
+            return Time(nanoseconds=self._sim_ns, clock_type=self.clock_type)
+        return Time(nanoseconds=_time.time_ns(), clock_type=self.clock_type)
+
+    @property
+    def ros_time_is_active(self) -> bool:
+        return self._sim_ns is not None
+
+    def _set_ros_time_override(self, nanoseconds: int | None) -> None:
+        with self._changed:
+            self._sim_ns = nanoseconds
+            self._changed.notify_all()
+
+    def sleep_for(self, rel: Duration) -> bool:
+        return self.sleep_until(self.now() + rel)
+
+    def sleep_until(self, until: Time) -> bool:
+        while True:
+            remaining = until.nanoseconds - self.now().nanoseconds
+            if remaining <= 0:
+                return True
+            if self._sim_ns is None:
+                _time.sleep(remaining / 1e9)
+            else:
+                with self._changed:
+                    self._changed.wait(min(remaining / 1e9, 0.1))
+
+
+class ROSClock(Clock):
+    def __init__(self) -> None:
+        super().__init__(clock_type=ClockType.ROS_TIME)

@@ -1,0 +1,79 @@
+"""The one seam between our nodes and ROS 2.
+
+With ROS 2 Jazzy sourced, everything here is the real rclpy and the real generated message
+classes. Without it, the same names come from the bundled runtime (vizzy_runtime.rclpy_compat,
+on Cyclone DDS, wire-compatible with rmw_cyclonedds_cpp). No other module makes this choice.
+
+Nodes write:
+    from vizzy_runtime.ros import rclpy, Node, message, qos_profile_sensor_data, ...
+    Image = message('sensor_msgs/msg/Image')
+
+Set VIZZY_RUNTIME=bundled to use the bundled runtime even where rclpy is importable.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from typing import Any
+
+USING_REAL_ROS = False
+if os.environ.get('VIZZY_RUNTIME', '') != 'bundled':
+    try:
+        import rclpy  # type: ignore[import-not-found,no-redef]
+        USING_REAL_ROS = True
+    except ImportError:
+        pass
+
+if USING_REAL_ROS:
+    from rcl_interfaces.msg import (  # type: ignore[import-not-found]
+        FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult)
+    from rclpy.duration import Duration  # type: ignore[import-not-found]
+    from rclpy.executors import (  # type: ignore[import-not-found]
+        ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
+    from rclpy.node import Node  # type: ignore[import-not-found]
+    from rclpy.parameter import Parameter  # type: ignore[import-not-found]
+    from rclpy.qos import (  # type: ignore[import-not-found]
+        DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data,
+        qos_profile_system_default)
+    from rclpy.time import Time  # type: ignore[import-not-found]
+else:
+    from . import rclpy_compat as rclpy  # type: ignore[no-redef]
+    from .rclpy_compat.duration import Duration  # type: ignore[assignment]
+    from .rclpy_compat.executors import (  # type: ignore[assignment]
+        ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
+    from .rclpy_compat.node import Node  # type: ignore[assignment]
+    from .rclpy_compat.parameter import (  # type: ignore[assignment]
+        FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, ParameterType,
+        SetParametersResult)
+    from .rclpy_compat.qos import (  # type: ignore[assignment]
+        DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data,
+        qos_profile_system_default)
+    from .rclpy_compat.time import Time  # type: ignore[assignment]
+
+# /tf_static and other latched topics use this profile in ROS 2.
+qos_profile_latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                 reliability=ReliabilityPolicy.RELIABLE,
+                                 history=HistoryPolicy.KEEP_LAST)
+
+
+def message(typename: str) -> Any:
+    """The message class for 'pkg/msg/Type' (real generated class, or the bundled runtime's)."""
+    parts = typename.replace('.', '/').split('/')
+    if len(parts) == 2:
+        parts = [parts[0], 'msg', parts[1]]
+    if len(parts) != 3:
+        raise ValueError(f'not a message type name: {typename!r}')
+    if USING_REAL_ROS:
+        return getattr(importlib.import_module(f'{parts[0]}.{parts[1]}'), parts[2])
+    from .msgs import get_message
+    return get_message('/'.join(parts))
+
+
+__all__ = [
+    'USING_REAL_ROS', 'Duration', 'DurabilityPolicy', 'ExternalShutdownException',
+    'FloatingPointRange', 'HistoryPolicy', 'IntegerRange', 'MultiThreadedExecutor', 'Node',
+    'Parameter', 'ParameterDescriptor', 'ParameterType', 'QoSProfile', 'ReliabilityPolicy',
+    'SetParametersResult', 'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched',
+    'qos_profile_sensor_data', 'qos_profile_system_default', 'rclpy',
+]
