@@ -1,0 +1,255 @@
+"""`vizzy`: the ros2 verbs people know, for machines without ROS 2.
+
+    vizzy run <package> <executable> [args] [--ros-args ...]
+    vizzy launch [graph.yaml] [--duration S]
+    vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
+    vizzy node list
+    vizzy bag record [-o DIR] [-a | topics...] [--duration S] | play <bag> [-r RATE] | info <bag>
+
+Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
+the same topics. Errors are one line naming what and where; the exit code is non-zero.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from typing import Any, Sequence
+
+import numpy as np
+
+
+def _die(message: str, code: int = 2) -> int:
+    print(f'vizzy: {message}', file=sys.stderr)
+    return code
+
+
+# --- run / launch ------------------------------------------------------------------------------
+
+def cmd_run(ns: argparse.Namespace) -> int:
+    from .launcher import find_entry_point
+    ep = find_entry_point(ns.package, ns.executable)
+    sys.argv = [ns.executable, *ns.args]
+    result = ep.load()()
+    return int(result or 0)
+
+
+def cmd_launch(ns: argparse.Namespace) -> int:
+    from .launcher import launch
+    codes = launch(ns.graph, ns.duration)
+    failed = {n: c for n, c in codes.items() if c not in (0, None, -2, 130)}
+    return 1 if failed else 0
+
+
+# --- topics ------------------------------------------------------------------------------------
+
+def _wait_for_type(topic: str, typename: str | None, timeout: float) -> tuple[str, Any]:
+    from . import dds
+    disc = dds.Discovery()
+    deadline = time.monotonic() + timeout
+    while True:
+        writers = [ep for ep in disc.endpoints() if ep.is_writer and ep.topic == topic]
+        if writers or (typename and time.monotonic() > deadline):
+            break
+        if time.monotonic() > deadline:
+            raise TimeoutError(f'no publisher on {topic} after {timeout:g} s (give --type to wait anyway)')
+        time.sleep(0.05)
+    types = {ep.typename for ep in writers}
+    if typename is None:
+        if len(types) > 1:
+            raise ValueError(f'{topic} has publishers of several types: {", ".join(sorted(types))}')
+        typename = types.pop()
+    # Adapt to the publishers like ros2 topic echo: reliable only if all are, latched if all are.
+    qos = dds.QoS(reliable=bool(writers) and all(ep.qos.reliable for ep in writers),
+                  transient_local=bool(writers) and all(ep.qos.transient_local for ep in writers),
+                  depth=10)
+    return typename, qos
+
+
+def cmd_topic_list(ns: argparse.Namespace) -> int:
+    from . import dds
+    disc = dds.Discovery()
+    time.sleep(ns.wait)  # discovery is asynchronous: listen for a moment before answering
+    topics: dict[str, set[str]] = {}
+    for ep in disc.endpoints():
+        topics.setdefault(ep.topic, set()).add(ep.typename)
+    for name in sorted(topics):
+        print(f'{name} [{", ".join(sorted(topics[name]))}]' if ns.show_types else name)
+    return 0
+
+
+def to_yaml(msg: Any, indent: int = 0, max_array: int = 16) -> str:
+    """`ros2 topic echo`-style text; long arrays are cut to their first elements."""
+    pad = '  ' * indent
+    fields = getattr(type(msg), '__slots__', None) or []
+    lines = []
+    for name in fields:
+        value = getattr(msg, name)
+        if hasattr(type(value), '__msgtype__'):
+            lines.append(f'{pad}{name}:\n{to_yaml(value, indent + 1, max_array)}')
+        elif isinstance(value, (list, np.ndarray)) and len(value) and hasattr(type(value[0]), '__msgtype__'):
+            lines.append(f'{pad}{name}:')
+            for item in value[:max_array]:
+                body = to_yaml(item, indent + 2, max_array).lstrip()
+                lines.append(f'{pad}- {body}')
+            if len(value) > max_array:
+                lines.append(f'{pad}- \'...\' ({len(value)} items)')
+        elif isinstance(value, (list, np.ndarray)):
+            items = list(value[:max_array])
+            text = ', '.join(repr(v.item()) if hasattr(v, 'item') else repr(v) for v in items)
+            more = f', ... ({len(value)} items)' if len(value) > max_array else ''
+            lines.append(f'{pad}{name}: [{text}{more}]')
+        else:
+            lines.append(f'{pad}{name}: {value!r}' if isinstance(value, str) else f'{pad}{name}: {value}')
+    return '\n'.join(lines)
+
+
+def cmd_topic_echo(ns: argparse.Namespace) -> int:
+    from . import dds, msgs
+    typename, qos = _wait_for_type(ns.topic, ns.type and msgs.normalize_type_name(ns.type), ns.timeout)
+    reader = dds.RawReader(ns.topic, typename, qos)
+    shown = 0
+    while ns.count is None or shown < ns.count:
+        batch = reader.take(16)
+        if not batch:
+            time.sleep(0.005)
+            continue
+        for raw, _stamp in batch:
+            try:
+                print(to_yaml(msgs.deserialize(raw, typename)) + '\n---', flush=True)
+            except Exception as err:  # noqa: BLE001 - report and keep echoing
+                print(f'vizzy: {ns.topic}: cannot decode a {typename} sample: {err}', file=sys.stderr)
+            shown += 1
+            if ns.count is not None and shown >= ns.count:
+                break
+    return 0
+
+
+def rate_stats(stamps: Sequence[float]) -> dict[str, float]:
+    """ros2 topic hz's figures from receive times (s)."""
+    gaps = np.diff(np.asarray(stamps, dtype=float))
+    if gaps.size == 0:
+        return {'rate': 0.0, 'min': math.nan, 'max': math.nan, 'std_dev': math.nan, 'window': len(stamps)}
+    return {'rate': float(1.0 / gaps.mean()), 'min': float(gaps.min()), 'max': float(gaps.max()),
+            'std_dev': float(gaps.std()), 'window': int(gaps.size + 1)}
+
+
+def cmd_topic_hz(ns: argparse.Namespace) -> int:
+    from . import dds
+    typename, qos = _wait_for_type(ns.topic, ns.type, ns.timeout)
+    reader = dds.RawReader(ns.topic, typename, qos)
+    stamps: list[float] = []
+    start = last_print = time.monotonic()
+    while ns.duration is None or time.monotonic() - start < ns.duration:
+        for _ in reader.take(64):
+            stamps.append(time.monotonic())
+        stamps = stamps[-ns.window:]
+        if time.monotonic() - last_print >= 1.0 and len(stamps) > 1:
+            s = rate_stats(stamps)
+            print(f"average rate: {s['rate']:.3f}\n\tmin: {s['min']:.3f}s max: {s['max']:.3f}s "
+                  f"std dev: {s['std_dev']:.5f}s window: {s['window']}", flush=True)
+            last_print = time.monotonic()
+        time.sleep(0.001)
+    return 0
+
+
+def cmd_node_list(ns: argparse.Namespace) -> int:
+    from .rclpy_compat import graph
+    for namespace, name in graph.node_names_and_namespaces(ns.wait):
+        print(f'{namespace.rstrip("/")}/{name}')
+    return 0
+
+
+# --- bags --------------------------------------------------------------------------------------
+
+def cmd_bag_record(ns: argparse.Namespace) -> int:
+    from .bag import Recorder
+    out = ns.output or time.strftime('rosbag2_%Y_%m_%d-%H_%M_%S')
+    recorder = Recorder(out, topics=None if ns.all or not ns.topics else ns.topics)
+    recorder.run(duration=ns.duration)
+    return 0
+
+
+def cmd_bag_play(ns: argparse.Namespace) -> int:
+    from .bag import Player
+    Player(ns.bag, rate=ns.rate, topics=ns.topics or None, loop=ns.loop).run()
+    return 0
+
+
+def cmd_bag_info(ns: argparse.Namespace) -> int:
+    from .bag import bag_info
+    print(bag_info(ns.bag))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog='vizzy', description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest='verb', required=True)
+
+    run = sub.add_parser('run', help='run one node (like ros2 run)')
+    run.add_argument('package')
+    run.add_argument('executable')
+    run.add_argument('args', nargs=argparse.REMAINDER, help='node arguments, incl. --ros-args ...')
+    run.set_defaults(func=cmd_run)
+
+    la = sub.add_parser('launch', help='start the graph, one process per node (like ros2 launch)')
+    la.add_argument('graph', nargs='?', help='graph YAML (default: vizzy_runtime config/graph.yaml)')
+    la.add_argument('--duration', type=float, help='stop after this many seconds')
+    la.set_defaults(func=cmd_launch)
+
+    topic = sub.add_parser('topic', help='inspect topics').add_subparsers(dest='topic_verb', required=True)
+    tl = topic.add_parser('list')
+    tl.add_argument('-t', '--show-types', action='store_true')
+    tl.add_argument('--wait', type=float, default=1.0, help='seconds to listen for discovery')
+    tl.set_defaults(func=cmd_topic_list)
+    for name, func in (('echo', cmd_topic_echo), ('hz', cmd_topic_hz)):
+        t = topic.add_parser(name)
+        t.add_argument('topic')
+        t.add_argument('--type', help='message type, if no publisher is up yet')
+        t.add_argument('--timeout', type=float, default=10.0, help='seconds to wait for a publisher')
+        if name == 'echo':
+            t.add_argument('-n', '--count', type=int, help='exit after this many messages')
+        else:
+            t.add_argument('--window', type=int, default=100)
+            t.add_argument('--duration', type=float, help='exit after this many seconds')
+        t.set_defaults(func=func)
+
+    node = sub.add_parser('node', help='inspect nodes').add_subparsers(dest='node_verb', required=True)
+    nl = node.add_parser('list')
+    nl.add_argument('--wait', type=float, default=1.0)
+    nl.set_defaults(func=cmd_node_list)
+
+    bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(dest='bag_verb', required=True)
+    rec = bag.add_parser('record')
+    rec.add_argument('topics', nargs='*')
+    rec.add_argument('-a', '--all', action='store_true')
+    rec.add_argument('-o', '--output')
+    rec.add_argument('--duration', type=float)
+    rec.set_defaults(func=cmd_bag_record)
+    play = bag.add_parser('play')
+    play.add_argument('bag')
+    play.add_argument('-r', '--rate', type=float, default=1.0)
+    play.add_argument('--topics', nargs='*')
+    play.add_argument('-l', '--loop', action='store_true')
+    play.set_defaults(func=cmd_bag_play)
+    info = bag.add_parser('info')
+    info.add_argument('bag')
+    info.set_defaults(func=cmd_bag_info)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    ns = build_parser().parse_args(argv)
+    try:
+        return ns.func(ns)
+    except KeyboardInterrupt:
+        return 0
+    except (ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
+        return _die(str(err))
+
+
+if __name__ == '__main__':
+    sys.exit(main())

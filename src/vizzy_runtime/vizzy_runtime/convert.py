@@ -1,0 +1,142 @@
+"""numpy <-> sensor_msgs conversions without per-element Python work.
+
+They work on the bundled runtime's messages (data is a numpy array) and on real rclpy's
+(data is array.array / bytes): both expose the buffer protocol, read here with np.frombuffer.
+"""
+
+from __future__ import annotations
+
+import array
+import sys
+from typing import Any
+
+import numpy as np
+
+from .ros import USING_REAL_ROS, message
+
+# encoding -> (dtype, channels); the subset of sensor_msgs/image_encodings the graph uses.
+IMAGE_ENCODINGS: dict[str, tuple[str, int]] = {
+    'rgb8': ('u1', 3), 'bgr8': ('u1', 3), 'rgba8': ('u1', 4), 'bgra8': ('u1', 4),
+    'mono8': ('u1', 1), 'mono16': ('u2', 1), '8UC1': ('u1', 1), '8UC3': ('u1', 3),
+    '16UC1': ('u2', 1), '32FC1': ('f4', 1), '64FC1': ('f8', 1),
+}
+
+# sensor_msgs/PointField datatypes
+_POINTFIELD_DTYPES = {1: 'i1', 2: 'u1', 3: 'i2', 4: 'u2', 5: 'i4', 6: 'u4', 7: 'f4', 8: 'f8'}
+_DTYPE_POINTFIELD = {np.dtype(v).str[1:]: k for k, v in _POINTFIELD_DTYPES.items()}
+
+
+class ConversionError(ValueError):
+    """A message that cannot be viewed as the requested array (encoding, size, layout)."""
+
+
+def _byte_view(data: Any) -> np.ndarray:
+    return np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.view(np.uint8)
+
+
+def _set_bytes(msg: Any, field: str, buf: np.ndarray) -> None:
+    """Assign a uint8 buffer the way each runtime's generated setter accepts without a Python loop."""
+    if USING_REAL_ROS:
+        setattr(msg, field, array.array('B', buf.tobytes()))
+    else:
+        setattr(msg, field, buf)
+
+
+def image_to_numpy(msg: Any) -> np.ndarray:
+    """H x W (x C) view of a sensor_msgs/Image; raises ConversionError naming the problem."""
+    if msg.encoding not in IMAGE_ENCODINGS:
+        raise ConversionError(f'unsupported image encoding {msg.encoding!r} '
+                              f'(supported: {", ".join(sorted(IMAGE_ENCODINGS))})')
+    if msg.height == 0 or msg.width == 0:
+        raise ConversionError(f'empty image ({msg.width}x{msg.height})')
+    kind, channels = IMAGE_ENCODINGS[msg.encoding]
+    dtype = np.dtype(kind).newbyteorder('>' if msg.is_bigendian else '<')
+    row = msg.width * channels * dtype.itemsize
+    if msg.step < row:
+        raise ConversionError(f'step {msg.step} is smaller than a row of {row} bytes')
+    raw = _byte_view(msg.data)
+    if raw.size < msg.step * msg.height:
+        raise ConversionError(f'image data has {raw.size} bytes, expected {msg.step * msg.height} '
+                              f'({msg.width}x{msg.height} {msg.encoding}, step {msg.step})')
+    rows = raw[:msg.step * msg.height].reshape(msg.height, msg.step)[:, :row]
+    arr = np.ascontiguousarray(rows).view(dtype) if msg.step != row else rows.view(dtype)
+    shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
+    return arr.reshape(shape)
+
+
+def numpy_to_image(arr: np.ndarray, encoding: str, header: Any = None) -> Any:
+    """sensor_msgs/Image holding arr (copied once into the message buffer)."""
+    if encoding not in IMAGE_ENCODINGS:
+        raise ConversionError(f'unsupported image encoding {encoding!r}')
+    kind, channels = IMAGE_ENCODINGS[encoding]
+    want = (arr.ndim == 2 and channels == 1) or (arr.ndim == 3 and arr.shape[2] == channels)
+    if not want:
+        raise ConversionError(f'array of shape {arr.shape} does not fit encoding {encoding}')
+    arr = np.ascontiguousarray(arr, dtype=np.dtype(kind))
+    msg = message('sensor_msgs/msg/Image')()
+    if header is not None:
+        msg.header = header
+    msg.height, msg.width = int(arr.shape[0]), int(arr.shape[1])
+    msg.encoding = encoding
+    msg.is_bigendian = int(sys.byteorder == 'big' and arr.dtype.itemsize > 1)
+    msg.step = int(arr.shape[1] * channels * arr.dtype.itemsize)
+    _set_bytes(msg, 'data', arr.reshape(-1).view(np.uint8))
+    return msg
+
+
+def pointcloud2_dtype(msg: Any) -> np.dtype:
+    """Structured dtype of one point, from the PointFields (offsets and point_step honoured)."""
+    names, formats, offsets = [], [], []
+    for f in msg.fields:
+        if f.datatype not in _POINTFIELD_DTYPES:
+            raise ConversionError(f'PointField {f.name!r} has unknown datatype {f.datatype}')
+        base = np.dtype(_POINTFIELD_DTYPES[f.datatype]).newbyteorder('>' if msg.is_bigendian else '<')
+        names.append(f.name)
+        formats.append(base if f.count <= 1 else (base, (f.count,)))
+        offsets.append(f.offset)
+    return np.dtype({'names': names, 'formats': formats, 'offsets': offsets, 'itemsize': msg.point_step})
+
+
+def pointcloud2_to_array(msg: Any) -> np.ndarray:
+    """Structured array (height x width) viewing a PointCloud2's data."""
+    dtype = pointcloud2_dtype(msg)
+    n = msg.width * msg.height
+    raw = _byte_view(msg.data)
+    if msg.row_step < msg.width * msg.point_step or raw.size < msg.row_step * msg.height:
+        raise ConversionError(f'PointCloud2 data has {raw.size} bytes, too few for '
+                              f'{msg.width}x{msg.height} points of {msg.point_step} bytes')
+    if n == 0:
+        return np.zeros((msg.height, msg.width), dtype=dtype)
+    rows = raw[:msg.row_step * msg.height].reshape(msg.height, msg.row_step)[:, :msg.width * msg.point_step]
+    return np.ascontiguousarray(rows).view(dtype).reshape(msg.height, msg.width)
+
+
+def array_to_pointcloud2(points: np.ndarray, header: Any = None, *, is_dense: bool | None = None) -> Any:
+    """PointCloud2 from a structured array (1-D: unorganized, 2-D: organized height x width)."""
+    if points.dtype.names is None:
+        raise ConversionError('array_to_pointcloud2 needs a structured array (fields x, y, z, ...)')
+    grid = points if points.ndim == 2 else points.reshape(1, -1)
+    PointField = message('sensor_msgs/msg/PointField')
+    msg = message('sensor_msgs/msg/PointCloud2')()
+    if header is not None:
+        msg.header = header
+    fields = []
+    for name in points.dtype.names:
+        sub, offset = points.dtype.fields[name][:2]
+        base = sub.base if sub.shape else sub
+        code = _DTYPE_POINTFIELD.get(base.str[1:])
+        if code is None:
+            raise ConversionError(f'field {name!r} has dtype {base} with no PointField datatype')
+        fields.append(PointField(name=name, offset=int(offset), datatype=code,
+                                 count=int(np.prod(sub.shape)) if sub.shape else 1))
+    msg.fields = fields
+    msg.height, msg.width = int(grid.shape[0]), int(grid.shape[1])
+    msg.is_bigendian = sys.byteorder == 'big'
+    msg.point_step = int(points.dtype.itemsize)
+    msg.row_step = msg.point_step * msg.width
+    if is_dense is None:
+        is_dense = all(not np.isnan(grid[n]).any() for n in ('x', 'y', 'z') if n in points.dtype.names
+                       and points.dtype[n].kind == 'f')
+    msg.is_dense = bool(is_dense)
+    _set_bytes(msg, 'data', np.ascontiguousarray(grid).reshape(-1).view(np.uint8))
+    return msg

@@ -1,0 +1,202 @@
+"""The ROS-less launcher: starts the graph of config/graph.yaml, one process per node.
+
+The same YAML drives launch/graph.launch.py under `ros2 launch`, so the graph is described once.
+Ctrl-C (or SIGTERM, or the duration running out) sends SIGINT to every node, like ros2 launch,
+then SIGTERM and SIGKILL to whatever is still running after a grace period.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import yaml
+
+
+class LaunchError(ValueError):
+    """A graph description or node that cannot be launched (the message says which and why)."""
+
+
+@dataclass
+class NodeSpec:
+    package: str
+    executable: str
+    name: str
+    namespace: str = ''
+    parameters: list[str] = field(default_factory=list)
+    remappings: dict[str, str] = field(default_factory=dict)
+    arguments: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Graph:
+    nodes: list[NodeSpec]
+    use_sim_time: bool = False
+
+
+def share_dir(package: str) -> Path:
+    """A package's share directory: the installed one under ROS 2, else its source folder src/<pkg>."""
+    try:
+        from ament_index_python.packages import get_package_share_directory  # type: ignore
+        return Path(get_package_share_directory(package))
+    except Exception:  # noqa: BLE001 - no ROS 2, or not installed there: use the source tree
+        pass
+    try:
+        module = importlib.import_module(package)
+    except ImportError:
+        raise LaunchError(f'package {package!r} is not installed (run `make setup`)') from None
+    return Path(module.__file__).resolve().parent.parent
+
+
+def default_graph_file() -> Path:
+    return share_dir('vizzy_runtime') / 'config' / 'graph.yaml'
+
+
+def load_graph(path: str | Path) -> Graph:
+    p = Path(path)
+    if not p.is_file():
+        raise LaunchError(f'graph file {p}: no such file')
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise LaunchError(f'graph file {p}: not valid YAML ({exc})') from None
+    if not isinstance(data, dict) or not isinstance(data.get('nodes'), list):
+        raise LaunchError(f'graph file {p}: expected a mapping with a list under "nodes"')
+    nodes = []
+    for i, entry in enumerate(data['nodes']):
+        missing = [k for k in ('package', 'executable') if not isinstance(entry, dict) or k not in entry]
+        if missing:
+            raise LaunchError(f'graph file {p}: node #{i} lacks {", ".join(missing)}')
+        nodes.append(NodeSpec(
+            package=entry['package'], executable=entry['executable'],
+            name=entry.get('name') or entry['executable'], namespace=entry.get('namespace') or '',
+            parameters=list(entry.get('parameters') or []),
+            remappings=dict(entry.get('remappings') or {}),
+            arguments=[str(a) for a in entry.get('arguments') or []]))
+    return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)))
+
+
+def find_entry_point(package: str, executable: str) -> importlib.metadata.EntryPoint:
+    """The console_scripts entry point `ros2 run package executable` would start."""
+    norm = package.replace('-', '_').lower()
+    found = []
+    for ep in importlib.metadata.entry_points(group='console_scripts'):
+        dist = getattr(ep, 'dist', None)
+        if dist is not None and dist.metadata['Name'].replace('-', '_').lower() == norm:
+            found.append(ep)
+            if ep.name == executable:
+                return ep
+    if not found:
+        raise LaunchError(f'package {package!r} not found or has no executables (run `make setup`)')
+    names = ', '.join(sorted(ep.name for ep in found))
+    raise LaunchError(f'no executable {executable!r} in package {package!r} (it has: {names})')
+
+
+def node_command(spec: NodeSpec, use_sim_time: bool) -> list[str]:
+    find_entry_point(spec.package, spec.executable)  # fail before starting anything
+    share = share_dir(spec.package)
+    ros_args = ['--ros-args', '-r', f'__node:={spec.name}']
+    if spec.namespace:
+        ros_args += ['-r', f'__ns:={spec.namespace}']
+    for rel in spec.parameters:
+        path = (share / rel) if not os.path.isabs(rel) else Path(rel)
+        if not path.is_file():
+            raise LaunchError(f'node {spec.name}: parameters file {path} not found')
+        ros_args += ['--params-file', str(path)]
+    if use_sim_time:
+        ros_args += ['-p', 'use_sim_time:=true']
+    for src, dst in spec.remappings.items():
+        ros_args += ['-r', f'{src}:={dst}']
+    return [sys.executable, '-m', 'vizzy_runtime.cli', 'run', spec.package, spec.executable,
+            *spec.arguments, *ros_args]
+
+
+def _pump(prefix: str, stream: TextIO, out: TextIO) -> None:
+    for line in stream:
+        out.write(f'{prefix} {line}')
+        out.flush()
+
+
+class Launcher:
+    """Starts and stops a Graph's processes."""
+
+    def __init__(self, graph: Graph, *, env: dict[str, str] | None = None, grace_s: float = 5.0,
+                 output: TextIO | None = None) -> None:
+        self.graph = graph
+        self.env = {**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}
+        self.grace_s = grace_s
+        self.output = output or sys.stdout
+        self.procs: dict[str, subprocess.Popen[str]] = {}
+        self._threads: list[threading.Thread] = []
+
+    def start(self) -> None:
+        commands = [(spec.name, node_command(spec, self.graph.use_sim_time)) for spec in self.graph.nodes]
+        for index, (name, cmd) in enumerate(commands, 1):
+            proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                    text=True, bufsize=1, start_new_session=True)
+            self.procs[name] = proc
+            self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: {name}\n')
+            t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output),
+                                 daemon=True)
+            t.start()
+            self._threads.append(t)
+
+    def poll(self) -> dict[str, int | None]:
+        return {name: proc.poll() for name, proc in self.procs.items()}
+
+    def wait(self, duration: float | None = None) -> None:
+        """Until duration passes, every node exits, or Ctrl-C; reports nodes that die early."""
+        deadline = None if duration is None else time.monotonic() + duration
+        reported: set[str] = set()
+        while deadline is None or time.monotonic() < deadline:
+            states = self.poll()
+            for name, code in states.items():
+                if code is not None and name not in reported:
+                    reported.add(name)
+                    level = 'INFO' if code == 0 else 'ERROR'
+                    self.output.write(f'[{level}] [launch]: process {name} has finished (exit code {code})\n')
+            if all(code is not None for code in states.values()):
+                return
+            time.sleep(0.1)
+
+    def stop(self) -> dict[str, int | None]:
+        """SIGINT everyone, then escalate; returns exit codes."""
+        for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
+            alive = [p for p in self.procs.values() if p.poll() is None]
+            if not alive:
+                break
+            for proc in alive:
+                try:
+                    os.killpg(proc.pid, sig)
+                except ProcessLookupError:
+                    pass
+            end = time.monotonic() + grace
+            while time.monotonic() < end and any(p.poll() is None for p in alive):
+                time.sleep(0.05)
+        for t in self._threads:
+            t.join(timeout=1.0)
+        return self.poll()
+
+
+def launch(graph_file: str | Path | None = None, duration: float | None = None,
+           env: dict[str, str] | None = None) -> dict[str, Any]:
+    """Run a graph until duration or Ctrl-C and stop it cleanly; returns the exit codes."""
+    graph = load_graph(graph_file or default_graph_file())
+    launcher = Launcher(graph, env=env)
+    try:
+        launcher.start()
+        launcher.wait(duration)
+    except KeyboardInterrupt:
+        launcher.output.write('[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)\n')
+    finally:
+        codes = launcher.stop()
+    return codes
