@@ -21,8 +21,9 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 OUR_PACKAGE = 'active_vision_msgs'
 
+# 'byte' is int8 as in rosbags' generated code, so built and received messages compare equal.
 _NUMPY = {
-    'bool': np.bool_, 'byte': np.uint8, 'char': np.uint8, 'int8': np.int8, 'uint8': np.uint8,
+    'bool': np.bool_, 'byte': np.int8, 'char': np.uint8, 'int8': np.int8, 'uint8': np.uint8,
     'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32,
     'int64': np.int64, 'uint64': np.uint64, 'float32': np.float32, 'float64': np.float64,
 }

@@ -6,7 +6,7 @@ import re
 
 from .arguments import Remap
 
-_VALID = re.compile(r'^[~/]?[A-Za-z_{][A-Za-z0-9_/{}]*$')
+_VALID = re.compile(r'^(~/?|/)?[A-Za-z_{][A-Za-z0-9_/{}]*$|^~$')
 
 
 class InvalidNameError(ValueError):
