@@ -43,7 +43,11 @@ def loopback_config() -> str:
         '<CycloneDDS><Domain id="any"><General>'
         '<Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>'
         '<AllowMulticast>false</AllowMulticast>'
-        '</General><Discovery>'
+        # loopback's MTU is 64 KiB: a VGA image in 15 datagrams instead of 63 Ethernet-sized ones
+        '<MaxMessageSize>65500B</MaxMessageSize>'
+        '</General>'
+        '<Internal><SocketReceiveBufferSize min="default" max="8MiB"/></Internal>'
+        '<Discovery>'
         '<ParticipantIndex>auto</ParticipantIndex>'
         f'<MaxAutoParticipantIndex>{MAX_AUTO_PARTICIPANTS}</MaxAutoParticipantIndex>'
         '<Peers><Peer address="127.0.0.1"/></Peers>'
