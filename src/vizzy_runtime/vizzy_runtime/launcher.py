@@ -35,6 +35,7 @@ class NodeSpec:
     parameters: list[str] = field(default_factory=list)
     remappings: dict[str, str] = field(default_factory=dict)
     arguments: list[str] = field(default_factory=list)
+    use_sim_time: bool | None = None  # None: the graph's value
 
 
 @dataclass
@@ -81,7 +82,8 @@ def load_graph(path: str | Path) -> Graph:
             name=entry.get('name') or entry['executable'], namespace=entry.get('namespace') or '',
             parameters=list(entry.get('parameters') or []),
             remappings=dict(entry.get('remappings') or {}),
-            arguments=[str(a) for a in entry.get('arguments') or []]))
+            arguments=[str(a) for a in entry.get('arguments') or []],
+            use_sim_time=entry.get('use_sim_time')))
     return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)))
 
 
@@ -112,7 +114,7 @@ def node_command(spec: NodeSpec, use_sim_time: bool) -> list[str]:
         if not path.is_file():
             raise LaunchError(f'node {spec.name}: parameters file {path} not found')
         ros_args += ['--params-file', str(path)]
-    if use_sim_time:
+    if spec.use_sim_time if spec.use_sim_time is not None else use_sim_time:
         ros_args += ['-p', 'use_sim_time:=true']
     for src, dst in spec.remappings.items():
         ros_args += ['-r', f'{src}:={dst}']

@@ -1,0 +1,135 @@
+"""`make demo`: run the graph in simulation for a while, record everything to a bag, say what happened.
+
+    .venv/bin/python -m vizzy_runtime.demo [--duration 20] [--output bags/demo_<time>]
+
+The graph is vizzy_runtime's config/graph.yaml (the one `ros2 launch vizzy_runtime graph.launch.py`
+starts). The bag is a rosbag2 (MCAP) directory; the summary lists each topic's type, count and
+rate, each node's exit status, the perception outputs, and saves a picture of both cameras.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import msgs
+from .bag import BagReader, Recorder
+from .convert import image_to_numpy
+from .launcher import Launcher, default_graph_file, load_graph
+
+REPO = Path(__file__).resolve().parents[3]
+# Topics whose appearance means the graph is up (the camera stream and the gaze loop).
+READY_TOPICS = ('/vizzy/left/image_raw', '/gaze/state')
+
+
+def _wait_for_graph(timeout: float) -> bool:
+    from . import dds
+    disc = dds.Discovery()
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        writers = {ep.topic for ep in disc.endpoints() if ep.is_writer}
+        if all(t in writers for t in READY_TOPICS):
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def _describe(typename: str, msg: Any) -> str:
+    """One line about a perception output."""
+    short = typename.split('/')[-1]
+    for field in ('tracks', 'cylinders', 'detections', 'regions'):
+        if hasattr(msg, field):
+            return f'{len(getattr(msg, field))} {field}'
+    if short == 'GazeState':
+        p = msg.fixation_point
+        return (f'fixation ({p.x:.2f}, {p.y:.2f}, {p.z:.2f}) in {msg.header.frame_id or "?"}, '
+                f'in_saccade={msg.in_saccade}')
+    if short == 'PointCloud2':
+        return f'{msg.width * msg.height} points'
+    if short == 'Image':
+        return f'{msg.width}x{msg.height} {msg.encoding}'
+    return short
+
+
+def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
+    reader = BagReader(bag_dir)
+    last: dict[str, tuple[str, bytes]] = {}
+    first_images: dict[str, np.ndarray] = {}
+    stamps: dict[str, list[int]] = {}
+    for topic, typename, data, log_ns, _pub_ns in reader.messages():
+        stamps.setdefault(topic, []).append(log_ns)
+        last[topic] = (typename, data)
+        if topic in ('/vizzy/left/image_raw', '/vizzy/right/image_raw') and topic not in first_images:
+            try:
+                first_images[topic] = image_to_numpy(msgs.deserialize(data, typename))
+            except Exception as err:  # noqa: BLE001 - a picture is a nicety, not the point
+                print(f'demo: cannot decode {topic}: {err}', file=sys.stderr)
+    topics = {}
+    for topic, times in sorted(stamps.items()):
+        span = (times[-1] - times[0]) / 1e9
+        typename, data = last[topic]
+        try:
+            about = _describe(typename, msgs.deserialize(data, typename))
+        except Exception as err:  # noqa: BLE001
+            about = f'undecodable: {err}'
+        topics[topic] = {'type': typename, 'count': len(times),
+                         'rate_hz': round((len(times) - 1) / span, 1) if span > 0 else 0.0, 'last': about}
+    picture = None
+    if len(first_images) == 2:
+        import cv2
+        both = np.hstack([first_images['/vizzy/left/image_raw'], first_images['/vizzy/right/image_raw']])
+        out_dir.mkdir(parents=True, exist_ok=True)
+        picture = out_dir / 'cameras.png'
+        cv2.imwrite(str(picture), cv2.cvtColor(both, cv2.COLOR_RGB2BGR))
+    return {'topics': topics, 'picture': str(picture) if picture else None}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--duration', type=float, default=20.0, help='seconds to record (default 20)')
+    parser.add_argument('--output', help='bag directory (default bags/demo_<time>)')
+    parser.add_argument('--graph', help='graph YAML (default: vizzy_runtime config/graph.yaml)')
+    ns = parser.parse_args(argv)
+    bag_dir = Path(ns.output or REPO / 'bags' / time.strftime('demo_%Y%m%d_%H%M%S'))
+    out_dir = REPO / 'demo_output'
+
+    graph = load_graph(ns.graph or default_graph_file())
+    print(f'demo: starting {len(graph.nodes)} nodes: {", ".join(n.name for n in graph.nodes)}', flush=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log = open(out_dir / 'launch.log', 'w')
+    launcher = Launcher(graph, output=log)
+    counts: dict[str, int] = {}
+    try:
+        launcher.start()
+        if not _wait_for_graph(60):
+            print('demo: the graph did not come up within 60 s; see demo_output/launch.log', file=sys.stderr)
+        print(f'demo: recording all topics for {ns.duration:g} s into {bag_dir}', flush=True)
+        counts = Recorder(bag_dir).run(duration=ns.duration)
+    except KeyboardInterrupt:
+        print('demo: interrupted; finishing the bag', file=sys.stderr)
+    finally:
+        codes = launcher.stop()
+        log.close()
+
+    summary = summarize(bag_dir, out_dir)
+    print(f'\n== Vizzy demo: {sum(counts.values())} messages on {len(summary["topics"])} topics, bag {bag_dir}')
+    print(f'{"topic":34} {"type":42} {"count":>6} {"Hz":>7}  last message')
+    for topic, row in summary['topics'].items():
+        print(f'{topic:34} {row["type"]:42} {row["count"]:6d} {row["rate_hz"]:7.1f}  {row["last"]}')
+    print('\nnodes (exit code after SIGINT; 0 = clean shutdown):')
+    for name, code in codes.items():
+        print(f'  {name:20} {code}')
+    if summary['picture']:
+        print(f'\nboth cameras: {summary["picture"]}')
+    print(f'node output: {out_dir / "launch.log"}')
+    bad = [n for n, c in codes.items() if c not in (0, None)]
+    return 1 if bad or not summary['topics'] else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
