@@ -1,0 +1,85 @@
+"""The shared graph description: the ROS-less launcher starts every node and stops them cleanly."""
+
+import ast
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from vizzy_runtime import dds
+from vizzy_runtime.launcher import (LaunchError, Launcher, default_graph_file, find_entry_point,
+                                    load_graph, node_command)
+from vizzy_runtime.testing import wait_until
+
+OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
+           '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states', '/clock'}
+
+
+def test_graph_starts_and_stops_cleanly(tmp_path):
+    graph = load_graph(default_graph_file())
+    assert {n.name for n in graph.nodes} == {'sim', 'gaze_controller', 'foveation', 'stereo_ses',
+                                             'cylinder_detector', 'mot_planner'}
+    log = open(tmp_path / 'launch.log', 'w+')
+    launcher = Launcher(graph, output=log)
+    disc = dds.Discovery()
+    try:
+        launcher.start()
+        up = wait_until(lambda: OUTPUTS <= {ep.topic for ep in disc.endpoints() if ep.is_writer}, 90)
+        running = launcher.poll()
+    finally:
+        codes = launcher.stop()
+    log.seek(0)
+    text = log.read()
+    assert up, f'graph outputs missing; launch log:\n{text[-3000:]}'
+    assert all(code is None for code in running.values()), running
+    assert codes == {name: 0 for name in codes}, f'unclean exit {codes}; log:\n{text[-3000:]}'
+
+
+def test_real_launch_file_reads_the_same_graph():
+    launch_file = Path(default_graph_file()).parent.parent / 'launch' / 'graph.launch.py'
+    source = launch_file.read_text()
+    ast.parse(source)
+    assert 'graph.yaml' in source and 'launch_ros' in source
+
+
+def test_commands_carry_names_params_and_remaps():
+    graph = load_graph(default_graph_file())
+    sim = next(n for n in graph.nodes if n.name == 'sim')
+    fov = next(n for n in graph.nodes if n.name == 'foveation')
+    fov.remappings = {'/vizzy/left/image_raw': '/cam/image'}
+    cmd = node_command(fov, graph.use_sim_time)
+    assert cmd[cmd.index('run') + 1:cmd.index('run') + 3] == ['foveation_node', 'foveation']
+    assert '__node:=foveation' in cmd and '/vizzy/left/image_raw:=/cam/image' in cmd
+    assert 'use_sim_time:=true' in cmd
+    assert 'use_sim_time:=true' not in node_command(sim, graph.use_sim_time)  # the clock's source
+    assert any(a.endswith('config/foveation.yaml') for a in cmd)
+
+
+def test_bad_graphs_are_clear_errors(tmp_path):
+    with pytest.raises(LaunchError, match='no such file'):
+        load_graph(tmp_path / 'none.yaml')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('nodes:\n  - package: foveation_node\n')
+    with pytest.raises(LaunchError, match='lacks executable'):
+        load_graph(bad)
+    with pytest.raises(LaunchError, match="no executable 'nope' in package 'foveation_node'"):
+        find_entry_point('foveation_node', 'nope')
+    with pytest.raises(LaunchError, match="package 'nope_pkg' not found"):
+        find_entry_point('nope_pkg', 'x')
+
+
+def test_cli_reports_errors_in_one_line():
+    proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'run', 'nope_pkg', 'x'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == "vizzy: package 'nope_pkg' not found or has no executables (run `make setup`)"
+
+
+def test_default_transport_stays_on_loopback():
+    xml = dds.loopback_config()
+    assert '<NetworkInterface address="127.0.0.1"/>' in xml
+    assert '<AllowMulticast>false</AllowMulticast>' in xml
+    assert '<Peer address="127.0.0.1"/>' in xml
+    assert not dds.lan_mode()
