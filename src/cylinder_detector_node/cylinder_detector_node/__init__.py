@@ -1,0 +1,1 @@
+"""Cylinder detection and parameter identification in point clouds (thesis chapter 4)."""

@@ -1,0 +1,31 @@
+"""Launch the multiple object tracking planner (mot_planner) with config/mot_planner.yaml."""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+
+
+def generate_launch_description() -> LaunchDescription:
+    config = os.path.join(
+        get_package_share_directory('mot_planner_node'), 'config', 'mot_planner.yaml')
+    return LaunchDescription([
+        DeclareLaunchArgument(
+            'use_sim_time', default_value='false',
+            description='Follow /clock (true with the sim, or a bag played with --clock).'),
+        Node(
+            package='mot_planner_node',
+            executable='mot_planner',
+            name='mot_planner',
+            output='screen',
+            parameters=[
+                config,
+                {'use_sim_time': ParameterValue(
+                    LaunchConfiguration('use_sim_time'), value_type=bool)},
+            ],
+        ),
+    ])

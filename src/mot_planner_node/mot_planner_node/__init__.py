@@ -1,0 +1,1 @@
+"""Resource-constrained multiple object tracking and attention planning (thesis chapter 5)."""

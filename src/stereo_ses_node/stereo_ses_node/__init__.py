@@ -1,0 +1,1 @@
+"""Log-polar stereo with Unscented Transform and the Sensory Ego-Sphere (thesis chapter 3)."""
