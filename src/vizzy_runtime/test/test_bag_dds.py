@@ -1,0 +1,138 @@
+"""Recording and playing over DDS (loopback, a random ROS_DOMAIN_ID per test module)."""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import statistics
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+# Before the first dds.participant(): keep clear of other processes' domains.
+os.environ['ROS_DOMAIN_ID'] = str(random.randint(100, 200))
+
+from vizzy_runtime import msgs  # noqa: E402
+from vizzy_runtime.bag import BagReader, BagWriter, QosProfile, Recorder  # noqa: E402
+
+SRC = str(Path(__file__).resolve().parents[1])
+T0 = 1_700_000_000_000_000_000
+GAP_NS = 100_000_000  # 100 ms between recorded messages
+
+
+def env() -> dict[str, str]:
+    return {**os.environ, 'PYTHONPATH': SRC, 'ROS_DOMAIN_ID': os.environ['ROS_DOMAIN_ID']}
+
+
+def bag_cli(*args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.bag', *args], env=env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+        time.sleep(0.02)
+
+
+def wire(text: str) -> bytes:
+    data = bytes(msgs.serialize(msgs.get_message('std_msgs/msg/String')(data=text),
+                                'std_msgs/msg/String'))
+    return data + b'\0' * (-len(data) % 4)  # as DDS delivers it
+
+
+def test_play_then_record_round_trip(tmp_path: Path) -> None:
+    source, copy = tmp_path / 'source', tmp_path / 'copy'
+    latched = QosProfile(durability='transient_local', depth=1)
+    sent: dict[str, list[bytes]] = {'/talk': [], '/static': []}
+    with BagWriter(source) as writer:
+        writer.add_topic('/talk', 'std_msgs/msg/String', [QosProfile()])
+        writer.add_topic('/static', 'std_msgs/msg/String', [latched])
+        writer.write('/static', wire('static'), T0)
+        sent['/static'].append(wire('static'))
+        for i in range(10):
+            data = wire(f'message {i} ' + 'x' * i)
+            writer.write('/talk', data, T0 + (i + 1) * GAP_NS)
+            sent['/talk'].append(data)
+
+    recorder = bag_cli('record', '-o', str(copy), '/talk', '/static')
+    try:
+        player = bag_cli('play', str(source), '--rate', '2', '--wait-for-subscribers', '30')
+        out, err = player.communicate(timeout=90)
+        assert player.returncode == 0, err
+        assert 'no subscriber' not in err  # the recorder matched before the first message
+        assert '/talk: 10' in out
+    finally:
+        recorder.send_signal(signal.SIGINT)  # Ctrl-C: the bag must be finalized
+        out, err = recorder.communicate(timeout=60)
+    assert recorder.returncode == 0, err
+    assert (copy / 'metadata.yaml').exists()
+
+    reader = BagReader(copy)
+    got: dict[str, list[bytes]] = {'/talk': [], '/static': []}
+    times: list[int] = []
+    for msg in reader.messages():
+        got[msg.topic].append(msg.data)
+        if msg.topic == '/talk':
+            times.append(msg.log_time_ns)
+    assert got == sent  # byte for byte, in order
+    assert reader.topics['/static'].offered_qos_profiles[0].durability == 'transient_local'
+    assert reader.topics['/talk'].offered_qos_profiles[0].reliability == 'reliable'
+    gaps = [(b - a) / 1e9 for a, b in zip(times, times[1:])]
+    # rate 2: 100 ms gaps become ~50 ms; generous bounds, but far from rate 1 (100 ms)
+    assert 0.03 < statistics.median(gaps) < 0.075, gaps
+    assert 0.3 < (times[-1] - times[0]) / 1e9 < 0.7, gaps
+
+
+LATCHED_PUBLISHER = textwrap.dedent('''
+    import sys
+    from vizzy_runtime import dds, msgs
+    String = msgs.get_message('std_msgs/msg/String')
+    writer = dds.RawWriter('/latched', 'std_msgs/msg/String',
+                           dds.QoS(reliable=True, transient_local=True, depth=1))
+    writer.write(msgs.serialize(String(data='published before the recorder started')))
+    print('published', flush=True)
+    sys.stdin.read()  # keep the writer (and its latched sample) alive until stdin closes
+''')
+
+
+def test_recorder_gets_latched_and_late_topics(tmp_path: Path) -> None:
+    publisher = subprocess.Popen([sys.executable, '-c', LATCHED_PUBLISHER], env=env(),
+                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    recorder = Recorder(tmp_path / 'bag', discovery_interval=0.1)
+    thread = threading.Thread(target=recorder.run, name='recorder')
+    try:
+        assert publisher.stdout is not None and publisher.stdout.readline() == 'published\n'
+        thread.start()
+        wait_for(lambda: recorder.counts.get('/latched', 0) == 1, 30, 'the latched message')
+    finally:
+        recorder.stop()
+        thread.join(timeout=60)
+        publisher.communicate(timeout=30)
+    assert not thread.is_alive()
+    reader = BagReader(tmp_path / 'bag')
+    (msg,) = list(reader.messages(topics=['/latched']))
+    assert msgs.deserialize(msg.data, 'std_msgs/msg/String').data == \
+        'published before the recorder started'
+    qos = reader.topics['/latched'].offered_qos_profiles[0]
+    assert (qos.durability, qos.reliability, qos.depth) == ('transient_local', 'reliable', 1)
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_recorder_finalizes_on_signal_without_data(tmp_path: Path, sig: int) -> None:
+    recorder = bag_cli('record', '-o', str(tmp_path / 'bag'), '/nothing_here')
+    wait_for(lambda: (tmp_path / 'bag' / 'bag_0.mcap').exists(), 30, 'the recorder to start')
+    recorder.send_signal(sig)
+    _out, err = recorder.communicate(timeout=60)
+    assert recorder.returncode == 0, err
+    reader = BagReader(tmp_path / 'bag')
+    assert reader.message_count == 0 and reader.topics == {}
