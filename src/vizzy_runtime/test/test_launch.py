@@ -24,15 +24,26 @@ def test_graph_starts_and_stops_cleanly(tmp_path):
     log = open(tmp_path / 'launch.log', 'w+')
     launcher = Launcher(graph, output=log)
     disc = dds.Discovery()
+    readers: dict[str, dds.RawReader] = {}
+    heard: set[str] = set()
+
+    def all_outputs_flowing() -> bool:
+        # a message from every output means every node is spinning (not still starting up)
+        for ep in disc.endpoints():
+            if ep.is_writer and ep.topic in OUTPUTS and ep.topic not in readers:
+                readers[ep.topic] = dds.RawReader(ep.topic, ep.typename, dds.QoS(reliable=False))
+        heard.update(t for t, r in readers.items() if r.take(8))
+        return heard == OUTPUTS
+
     try:
         launcher.start()
-        up = wait_until(lambda: OUTPUTS <= {ep.topic for ep in disc.endpoints() if ep.is_writer}, 90)
+        up = wait_until(all_outputs_flowing, 90)
         running = launcher.poll()
     finally:
         codes = launcher.stop()
     log.seek(0)
     text = log.read()
-    assert up, f'graph outputs missing; launch log:\n{text[-3000:]}'
+    assert up, f'no messages on {OUTPUTS - heard}; launch log:\n{text[-3000:]}'
     assert all(code is None for code in running.values()), running
     assert codes == {name: 0 for name in codes}, f'unclean exit {codes}; log:\n{text[-3000:]}'
 

@@ -137,3 +137,17 @@ def test_malformed_cdr_is_a_clear_error():
     from rosbags.serde import SerdeError
     with pytest.raises(SerdeError):
         msgs.deserialize(b'\x00\x01\x00\x00\xff\xff', 'sensor_msgs/msg/Image')
+
+
+def test_array_fields_accept_what_rclpy_accepts():
+    JointState = msgs.get_message('sensor_msgs/msg/JointState')
+    js = JointState(name=['neck_pan_joint'], position=[0.5])
+    assert js.position.dtype == np.float64 and js.position[0] == 0.5
+    Image = msgs.get_message('sensor_msgs/msg/Image')
+    assert list(Image(data=b'\x01\x02').data) == [1, 2]
+    CameraInfo = msgs.get_message('sensor_msgs/msg/CameraInfo')
+    with pytest.raises(ValueError, match='exactly 9 elements'):
+        CameraInfo(k=[1.0, 2.0])
+    assert msgs.get_message('geometry_msgs/msg/Quaternion')().w == 1.0  # upstream default
+    raw = msgs.serialize(js)
+    assert msgs.deserialize(raw, 'sensor_msgs/msg/JointState') == js

@@ -83,7 +83,7 @@ def cmd_topic_list(ns: argparse.Namespace) -> int:
 def to_yaml(msg: Any, indent: int = 0, max_array: int = 16) -> str:
     """`ros2 topic echo`-style text; long arrays are cut to their first elements."""
     pad = '  ' * indent
-    fields = getattr(type(msg), '__slots__', None) or []
+    fields = list(msg.get_fields_and_field_types()) if hasattr(msg, 'get_fields_and_field_types') else []
     lines = []
     for name in fields:
         value = getattr(msg, name)

@@ -46,7 +46,9 @@ def loopback_config() -> str:
         # loopback's MTU is 64 KiB: a VGA image in 15 datagrams instead of 63 Ethernet-sized ones
         '<MaxMessageSize>65500B</MaxMessageSize>'
         '</General>'
-        '<Internal><SocketReceiveBufferSize min="default" max="8MiB"/></Internal>'
+        '<Internal><SocketReceiveBufferSize min="default" max="8MiB"/>'
+        # a node with many reliable writers must not take seconds to exit while its peers go too
+        '<WriterLingerDuration>200ms</WriterLingerDuration></Internal>'
         '<Discovery>'
         '<ParticipantIndex>auto</ParticipantIndex>'
         f'<MaxAutoParticipantIndex>{MAX_AUTO_PARTICIPANTS}</MaxAutoParticipantIndex>'

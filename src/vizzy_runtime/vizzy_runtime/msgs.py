@@ -121,6 +121,42 @@ def _nested_names(fields: list[tuple[str, Any]]) -> list[str]:
     return out
 
 
+# Default values declared in upstream .msg files (rosbags' store keeps no defaults).
+_FIELD_DEFAULTS: dict[tuple[str, str], Any] = {('geometry_msgs/msg/Quaternion', 'w'): 1.0}
+
+
+def _primitive_array(desc: Any) -> tuple[Any, int | None] | None:
+    """(dtype, fixed length or None) for a field that is a sequence/array of numbers, else None."""
+    kind, rest = desc
+    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        sub, length = rest
+        if sub[0] == Nodetype.BASE and sub[1][0] in _NUMPY:
+            return _NUMPY[sub[1][0]], (length if kind == Nodetype.ARRAY else None)
+    return None
+
+
+def _array_property(typename: str, name: str, dtype: Any, length: int | None) -> property:
+    """Like rclpy's setters: lists, bytes and array.array become a numpy array (no copy when already
+    one of the right dtype); a fixed-size array of the wrong length is refused."""
+    slot = '_' + name
+
+    def fget(self: Any) -> Any:
+        return getattr(self, slot)
+
+    def fset(self: Any, value: Any) -> None:
+        if not (isinstance(value, np.ndarray) and value.dtype == dtype and value.ndim == 1):
+            if isinstance(value, (bytes, bytearray, memoryview)) or type(value).__name__ == 'array':
+                value = np.frombuffer(value, dtype=np.uint8).view(dtype) if np.dtype(dtype).itemsize == 1 \
+                    else np.asarray(value, dtype=dtype)
+            else:
+                value = np.asarray(value, dtype=dtype).reshape(-1)
+        if length is not None and value.size != length:
+            raise ValueError(f'{typename}.{name} must have exactly {length} elements, got {value.size}')
+        setattr(self, slot, value)
+
+    return property(fget, fset)
+
+
 def _default_factory(registry: _Registry, desc: Any) -> Any:
     """A zero-argument callable giving the rclpy default value for one field."""
     kind, rest = desc
@@ -150,6 +186,10 @@ def _make_class(registry: _Registry, typename: str) -> type:
     fields = registry.fields(typename)
     names = [name for name, _ in fields]
     factories = {name: _default_factory(registry, desc) for name, desc in fields}
+    for (owner, name), value in _FIELD_DEFAULTS.items():
+        if owner == typename:
+            factories[name] = lambda value=value: value
+    arrays = {name: spec for name, desc in fields if (spec := _primitive_array(desc))}
     pkg, _, short = typename.split('/')
 
     def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
@@ -180,7 +220,7 @@ def _make_class(registry: _Registry, typename: str) -> type:
         return f'{pkg}.msg.{short}({inner})'
 
     namespace: dict[str, Any] = {
-        '__slots__': tuple(names),
+        '__slots__': tuple('_' + n if n in arrays else n for n in names),
         '__init__': __init__,
         '__eq__': __eq__,
         '__hash__': None,
@@ -192,6 +232,8 @@ def _make_class(registry: _Registry, typename: str) -> type:
     }
     for cname, _ctype, cvalue in registry.constants(typename):
         namespace[cname] = cvalue
+    for name, (dtype, length) in arrays.items():
+        namespace[name] = _array_property(typename, name, dtype, length)
     return type(short, (), namespace)
 
 
@@ -234,7 +276,8 @@ def deserialize(raw: bytes | memoryview, typename: str) -> Any:
     """Message object from CDR bytes; primitive arrays are numpy views over `raw` (no copy)."""
     reg = registry()
     reg.get_class(typename)
-    return reg.store.deserialize_cdr(raw, typename)
+    # a memoryview, so rosbags' rawdata[4:] does not copy the payload
+    return reg.store.deserialize_cdr(raw if isinstance(raw, memoryview) else memoryview(raw), typename)
 
 
 def message_definition(typename: str) -> str:

@@ -34,8 +34,8 @@ class RcutilsLogger:
     def __init__(self, name: str = '') -> None:
         self.name = name
         self._level: LoggingSeverity | None = None
-        self._once: set[tuple[int, str]] = set()
-        self._last: dict[tuple[int, str], float] = {}
+        self._once: set[tuple[str, int]] = set()
+        self._last: dict[tuple[str, int], float] = {}
 
     def get_child(self, name: str) -> 'RcutilsLogger':
         return RcutilsLogger(f'{self.name}.{name}' if self.name else name)
@@ -54,21 +54,22 @@ class RcutilsLogger:
         severity = LoggingSeverity(severity)
         if not self.is_enabled_for(severity):
             return False
-        key = (int(severity), str(message) if once else '')
-        if once:
-            if key in self._once:
-                return False
-            self._once.add(key)
-        if throttle_duration_sec:
+        if once or throttle_duration_sec or skip_first:
+            # like rclpy, `once` and throttling are per call site, not per logger
+            caller = sys._getframe(2)
+            key = (caller.f_code.co_filename, caller.f_lineno)
+            if once:
+                if key in self._once:
+                    return False
+                self._once.add(key)
             now = time.monotonic()
-            tkey = (int(severity), 'throttle')
-            last = self._last.get(tkey)
+            last = self._last.get(key)
             if last is None and skip_first:
-                self._last[tkey] = now
+                self._last[key] = now
                 return False
-            if last is not None and now - last < throttle_duration_sec:
+            if throttle_duration_sec and last is not None and now - last < throttle_duration_sec:
                 return False
-            self._last[tkey] = now
+            self._last[key] = now
         stamp = time.time()
         line = f'[{severity.name}] [{stamp:.9f}] [{self.name}]: {message}\n'
         with _lock:
