@@ -32,7 +32,7 @@ def env() -> dict[str, str]:
 
 
 def bag_cli(*args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.bag', *args], env=env(),
+    return subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'bag', *args], env=env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -4,7 +4,7 @@
     vizzy launch [graph.yaml] [--duration S]
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
-    vizzy bag record [-o DIR] [-a | topics...] [--duration S] | play <bag> [-r RATE] | info <bag>
+    vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag> | reindex <bag>
 
 Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
 the same topics. Errors are one line naming what and where; the exit code is non-zero.
@@ -13,6 +13,7 @@ the same topics. Errors are one line naming what and where; the exit code is non
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import sys
 import time
@@ -164,23 +165,35 @@ def cmd_node_list(ns: argparse.Namespace) -> int:
 
 # --- bags --------------------------------------------------------------------------------------
 
+def _print_counts(counts: dict[str, int]) -> None:
+    for topic, count in sorted(counts.items()):
+        print(f'{topic}: {count}')
+
+
 def cmd_bag_record(ns: argparse.Namespace) -> int:
-    from .bag import Recorder
-    out = ns.output or time.strftime('rosbag2_%Y_%m_%d-%H_%M_%S')
-    recorder = Recorder(out, topics=None if ns.all or not ns.topics else ns.topics)
-    recorder.run(duration=ns.duration)
+    from .bag import Recorder, default_bag_name
+    topics = None if ns.all or not ns.topics else ns.topics
+    _print_counts(Recorder(ns.output or default_bag_name(), topics,
+                           include_hidden=ns.include_hidden).run(ns.duration))
     return 0
 
 
 def cmd_bag_play(ns: argparse.Namespace) -> int:
     from .bag import Player
-    Player(ns.bag, rate=ns.rate, topics=ns.topics or None, loop=ns.loop).run()
+    _print_counts(Player(ns.bag, rate=ns.rate, topics=ns.topics, loop=ns.loop,
+                         wait_for_subscribers=ns.wait_for_subscribers).run())
     return 0
 
 
 def cmd_bag_info(ns: argparse.Namespace) -> int:
     from .bag import bag_info
-    print(bag_info(ns.bag))
+    print(bag_info(ns.bag), end='')
+    return 0
+
+
+def cmd_bag_reindex(ns: argparse.Namespace) -> int:
+    from .bag import reindex
+    reindex(ns.bag)
     return 0
 
 
@@ -226,28 +239,35 @@ def build_parser() -> argparse.ArgumentParser:
     rec = bag.add_parser('record')
     rec.add_argument('topics', nargs='*')
     rec.add_argument('-a', '--all', action='store_true')
-    rec.add_argument('-o', '--output')
-    rec.add_argument('--duration', type=float)
+    rec.add_argument('-o', '--output', help='bag directory to create (default rosbag2_<time>)')
+    rec.add_argument('-d', '--duration', type=float, help='seconds (default: until Ctrl-C)')
+    rec.add_argument('--include-hidden', action='store_true', help='also hidden topics (_name)')
     rec.set_defaults(func=cmd_bag_record)
     play = bag.add_parser('play')
     play.add_argument('bag')
     play.add_argument('-r', '--rate', type=float, default=1.0)
-    play.add_argument('--topics', nargs='*')
+    play.add_argument('--topics', nargs='+')
     play.add_argument('-l', '--loop', action='store_true')
+    play.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='SECONDS')
     play.set_defaults(func=cmd_bag_play)
     info = bag.add_parser('info')
     info.add_argument('bag')
     info.set_defaults(func=cmd_bag_info)
+    reindex = bag.add_parser('reindex', help='repair a killed recording and rebuild metadata.yaml')
+    reindex.add_argument('bag')
+    reindex.set_defaults(func=cmd_bag_reindex)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    from .bag import BagError
     ns = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format='[%(levelname)s] %(message)s')
     try:
         return ns.func(ns)
     except KeyboardInterrupt:
         return 0
-    except (ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
+    except (BagError, ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
         return _die(str(err))
 
 
