@@ -34,6 +34,8 @@ from . import msgs
 
 ANY_STATE = SampleState.Any | ViewState.Any | InstanceState.Any
 MAX_AUTO_PARTICIPANTS = 60
+# participant USER_DATA as rmw_cyclonedds_cpp sets it (the default enclave)
+ENCLAVE_USER_DATA = b'enclave=/;'
 
 
 def loopback_config() -> str:
@@ -87,7 +89,7 @@ def participant() -> DomainParticipant:
             did = domain_id()
             if not lan_mode():
                 _domain = Domain(did, loopback_config())
-            _participant = DomainParticipant(did)
+            _participant = DomainParticipant(did, qos=Qos(Policy.Userdata(ENCLAVE_USER_DATA)))
         return _participant
 
 

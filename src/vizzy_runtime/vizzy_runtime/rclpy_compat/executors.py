@@ -77,6 +77,10 @@ class Executor:
         for node in self.get_nodes():
             for sub in list(node.subscriptions):
                 did |= sub.take_and_dispatch() > 0
+            for srv in list(node.services):
+                if srv.ready:
+                    srv.serve()
+                    did = True
             for timer in list(node.timers):
                 if timer.is_ready():
                     timer.call()

@@ -13,6 +13,8 @@ from typing import Any, Callable, Iterable
 
 from .. import dds, msgs
 from . import exceptions as exc
+from . import graph  # ros_discovery_info (graph hooks below are marked "graph hook")
+from . import param_services  # rcl_interfaces parameter services ("parameter services hook")
 from .context import Context, get_default_context
 from .duration import Duration
 from .logging import RcutilsLogger
@@ -208,6 +210,7 @@ class Node:
         self.publishers: list[Publisher] = []
         self.subscriptions: list[Subscription] = []
         self.timers: list[Timer] = []
+        self.services: list[Any] = []  # served by the executor (parameter services)
         self._clock = ROSClock()
         self._clock_sub: Subscription | None = None
         self._destroyed = False
@@ -227,8 +230,11 @@ class Node:
             description='Follow /clock (simulation or bag time) instead of the system clock.'))
         self.add_on_set_parameters_callback(self._on_use_sim_time)
         self._apply_sim_time(bool(self.get_parameter('use_sim_time').value))
+        if start_parameter_services:  # parameter services hook: ros2 param get/set/list/describe
+            param_services.start(self)
         with self.context.wake:
             self.context.nodes.append(self)
+        graph.node_created(self)  # graph hook: announce the node on ros_discovery_info
         self.context.notify()
 
     # --- identity ---------------------------------------------------------------------------
@@ -261,6 +267,7 @@ class Node:
         pub = Publisher(self, msg_type, self.resolve_topic_name(topic), as_profile(qos_profile))
         with self._lock:
             self.publishers.append(pub)
+        graph.node_changed(self)  # graph hook: republish this node's writers
         self.context.notify()
         return pub
 
@@ -271,6 +278,7 @@ class Node:
                            as_profile(qos_profile), raw)
         with self._lock:
             self.subscriptions.append(sub)
+        graph.node_changed(self)  # graph hook: republish this node's readers
         self.context.notify()
         return sub
 
@@ -292,6 +300,7 @@ class Node:
                 return False
             self.publishers.remove(publisher)
         dds.delete(publisher._writer)
+        graph.node_changed(self)  # graph hook: republish this node's writers
         return True
 
     def destroy_subscription(self, subscription: Subscription) -> bool:
@@ -300,6 +309,7 @@ class Node:
                 return False
             self.subscriptions.remove(subscription)
         dds.delete(subscription._reader)
+        graph.node_changed(self)  # graph hook: republish this node's readers
         return True
 
     def destroy_timer(self, timer: Timer) -> bool:
@@ -314,6 +324,7 @@ class Node:
         if self._destroyed:
             return
         self._destroyed = True
+        param_services.stop(self)  # parameter services hook: their readers, writers and timer go
         for pub in list(self.publishers):
             self.destroy_publisher(pub)
         for sub in list(self.subscriptions):
@@ -323,6 +334,7 @@ class Node:
         with self.context.wake:
             if self in self.context.nodes:
                 self.context.nodes.remove(self)
+        graph.node_destroyed(self)  # graph hook: the node leaves ros_discovery_info
         self.context.notify()
 
     def _run_callback(self, callback: Callable[..., Any], arg: Any, what: str) -> None:
