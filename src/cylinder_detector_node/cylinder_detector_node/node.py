@@ -13,9 +13,8 @@ from typing import Any
 import numpy as np
 
 from vizzy_runtime.convert import ConversionError, pointcloud2_to_array
-from vizzy_runtime.ros import (
-    ExternalShutdownException, Node, ParameterDescriptor, SetParametersResult, message,
-    qos_profile_sensor_data, rclpy)
+from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
@@ -65,18 +64,14 @@ class CylinderDetectorNode(Node):
 
     def __init__(self) -> None:
         super().__init__('cylinder_detector')
-        for name, default, description in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        self._p = {n: self.get_parameter(n).value for n, _, _ in PARAMETERS}
-        problems = [p for p in (check_parameter(n, v) for n, v in self._p.items()) if p]
-        if problems:
-            raise ValueError('cylinder_detector: bad parameters: ' + '; '.join(problems))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+                                     on_change=self._on_parameters_changed)
 
         self._last_cloud = -float('inf')   # time.monotonic() of the last cloud
         self._pub = self.create_publisher(CylinderArray, CYLINDERS_TOPIC, 10)
         self.create_subscription(
-            PointCloud2, CLOUD_TOPIC, self._on_cloud, qos_profile_sensor_data)
+            PointCloud2, CLOUD_TOPIC, guarded(self, f'{CLOUD_TOPIC}: failed on a cloud',
+                                              self._on_cloud), qos_profile_sensor_data)
         self._timer = self.create_timer(self._p['heartbeat_period_s'], self._on_heartbeat)
         self.get_logger().info(
             f'placeholder: checking clouds on {CLOUD_TOPIC}, publishing empty cylinder arrays '
@@ -85,16 +80,12 @@ class CylinderDetectorNode(Node):
 
     def _on_cloud(self, msg: Any) -> None:
         self._last_cloud = time.monotonic()
-        try:
-            problem = cloud_problem(msg, self._p['min_points'])
-            if problem:
-                self.get_logger().warning(f'{CLOUD_TOPIC}: skipped cloud: {problem}',
-                                          throttle_duration_sec=5.0)
-                return
-            self._pub.publish(CylinderArray(header=msg.header))
-        except Exception as exc:  # one bad message never kills the node
-            self.get_logger().error(f'{CLOUD_TOPIC}: failed on a cloud: '
-                                    f'{type(exc).__name__}: {exc}', throttle_duration_sec=5.0)
+        problem = cloud_problem(msg, self._p['min_points'])
+        if problem:
+            self.get_logger().warning(f'{CLOUD_TOPIC}: skipped cloud: {problem}',
+                                      throttle_duration_sec=5.0)
+            return
+        self._pub.publish(CylinderArray(header=msg.header))
 
     def _on_heartbeat(self) -> None:
         if time.monotonic() - self._last_cloud < self._p['heartbeat_period_s']:
@@ -104,31 +95,13 @@ class CylinderDetectorNode(Node):
         msg.header.frame_id = self._p['frame_id']
         self._pub.publish(msg)
 
-    def _on_set_parameters(self, params: list[Any]) -> Any:
-        for param in params:
-            problem = check_parameter(param.name, param.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-        for param in params:
-            if param.name in self._p:
-                self._p[param.name] = param.value
-            if param.name == 'heartbeat_period_s':
-                self._timer.cancel()
-                self.destroy_timer(self._timer)
-                self._timer = self.create_timer(param.value, self._on_heartbeat)
-        return SetParametersResult(successful=True)
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'heartbeat_period_s' in changed:
+            self._timer = replace_timer(self, self._timer, changed['heartbeat_period_s'],
+                                        self._on_heartbeat)
 
 
-def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = CylinderDetectorNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+main = main_for(CylinderDetectorNode)
 
 
 if __name__ == '__main__':

@@ -3,50 +3,16 @@
 from pathlib import Path
 
 import numpy as np
-import pytest
-import yaml
 
 from foveation_node import node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.ros import Parameter, rclpy
+from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'foveation.yaml'
-DECLARED = {name: default for name, default, _ in node.PARAMETERS}
 
 
-def _config() -> dict:
-    doc = yaml.safe_load(CONFIG.read_text())
-    assert list(doc) == ['foveation'], 'the config is for node foveation only'
-    return doc['foveation']['ros__parameters']
-
-
-def test_parameters_are_described_and_unique() -> None:
-    names = [name for name, _, _ in node.PARAMETERS]
-    assert len(names) == len(set(names))
-    assert all(description.strip() for _, _, description in node.PARAMETERS)
-
-
-def test_defaults_are_valid() -> None:
-    for name, default in DECLARED.items():
-        assert node.check_parameter(name, default) is None, name
-
-
-def test_config_names_declared_parameters_with_valid_values() -> None:
-    params = _config()
-    assert set(params) - {'use_sim_time'} <= set(DECLARED)
-    for name, value in params.items():
-        if name == 'use_sim_time':
-            continue
-        # ROS 2 parameters are typed: 15 (integer) does not override 15.0 (double).
-        assert type(value) is type(DECLARED[name]), name
-        assert node.check_parameter(name, value) is None, name
-
-
-def test_out_of_range_values_are_refused() -> None:
-    refused = [name for name, default in DECLARED.items()
-               if isinstance(default, (int, float)) and not isinstance(default, bool)
-               and node.check_parameter(name, -1e9) is not None]
-    assert refused, 'at least one numeric parameter has a range'
+def test_parameter_table_and_config() -> None:
+    check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'foveation')
 
 
 def test_images_are_checked() -> None:
@@ -62,19 +28,6 @@ def test_images_are_checked() -> None:
     assert 'max_width' in node.image_problem(big, 32, 4096)
 
 
-@pytest.fixture
-def ros_context():
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
-
-
-def test_node_declares_its_parameters_and_refuses_bad_values(ros_context) -> None:
-    ros_node = node.FoveationNode()
-    try:
-        for name, default, _ in node.PARAMETERS:
-            assert ros_node.get_parameter(name).value == default, name
-        result = ros_node.set_parameters([Parameter('max_width', value=0)])[0]
-        assert not result.successful and 'max_width' in result.reason
-    finally:
-        ros_node.destroy_node()
+def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
+    with node_under_test(node.FoveationNode) as ros_node:
+        check_node_parameters(ros_node, node.PARAMETERS, 'max_width', 0)

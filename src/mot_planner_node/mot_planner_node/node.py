@@ -9,9 +9,8 @@ from __future__ import annotations
 from typing import Any
 
 from vizzy_runtime.convert import ConversionError, image_to_numpy
-from vizzy_runtime.ros import (
-    ExternalShutdownException, Node, ParameterDescriptor, SetParametersResult, message,
-    qos_profile_sensor_data, rclpy)
+from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
+from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 Image = message('sensor_msgs/msg/Image')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
@@ -53,53 +52,26 @@ class MotPlannerNode(Node):
 
     def __init__(self) -> None:
         super().__init__('mot_planner')
-        for name, default, description in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        self._p = {n: self.get_parameter(n).value for n, _, _ in PARAMETERS}
-        problems = [p for p in (check_parameter(n, v) for n, v in self._p.items()) if p]
-        if problems:
-            raise ValueError('mot_planner: bad parameters: ' + '; '.join(problems))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter)
 
         self._pub = self.create_publisher(TrackArray, TRACKS_TOPIC, 10)
-        self.create_subscription(Image, IMAGE_TOPIC, self._on_image, qos_profile_sensor_data)
+        self.create_subscription(
+            Image, IMAGE_TOPIC, guarded(self, f'{IMAGE_TOPIC}: failed on an image', self._on_image),
+            qos_profile_sensor_data)
         self.get_logger().info(
             f'placeholder: one empty TrackArray on {TRACKS_TOPIC} per image from {IMAGE_TOPIC} '
             f'(k_max={self._p["k_max"]}, s_max={self._p["s_max"]})')
 
     def _on_image(self, msg: Any) -> None:
-        try:
-            problem = image_problem(msg)
-            if problem:
-                self.get_logger().warning(f'{IMAGE_TOPIC}: dropped image: {problem}',
-                                          throttle_duration_sec=5.0)
-                return
-            self._pub.publish(TrackArray(header=msg.header))
-        except Exception as exc:  # one bad message never kills the node
-            self.get_logger().error(f'{IMAGE_TOPIC}: failed on an image: '
-                                    f'{type(exc).__name__}: {exc}', throttle_duration_sec=5.0)
-
-    def _on_set_parameters(self, params: list[Any]) -> Any:
-        for param in params:
-            problem = check_parameter(param.name, param.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-        for param in params:
-            if param.name in self._p:
-                self._p[param.name] = param.value
-        return SetParametersResult(successful=True)
+        problem = image_problem(msg)
+        if problem:
+            self.get_logger().warning(f'{IMAGE_TOPIC}: dropped image: {problem}',
+                                      throttle_duration_sec=5.0)
+            return
+        self._pub.publish(TrackArray(header=msg.header))
 
 
-def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = MotPlannerNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+main = main_for(MotPlannerNode)
 
 
 if __name__ == '__main__':

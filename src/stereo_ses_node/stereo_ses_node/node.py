@@ -11,9 +11,8 @@ from typing import Any
 import numpy as np
 
 from vizzy_runtime.convert import ConversionError, array_to_pointcloud2, image_to_numpy
-from vizzy_runtime.ros import (
-    ExternalShutdownException, Node, ParameterDescriptor, SetParametersResult, message,
-    qos_profile_sensor_data, rclpy)
+from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
@@ -57,35 +56,28 @@ class StereoSesNode(Node):
 
     def __init__(self) -> None:
         super().__init__('stereo_ses')
-        for name, default, description in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        self._p = {n: self.get_parameter(n).value for n, _, _ in PARAMETERS}
-        problems = [p for p in (check_parameter(n, v) for n, v in self._p.items()) if p]
-        if problems:
-            raise ValueError('stereo_ses: bad parameters: ' + '; '.join(problems))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+                                     on_change=self._on_parameters_changed)
 
         self._counts = {eye: 0 for eye in IMAGE_TOPICS}
         self._cells_pub = self.create_publisher(PointCloud2, CELLS_TOPIC, 10)
         for eye, topic in IMAGE_TOPICS.items():
-            self.create_subscription(Image, topic, lambda msg, eye=eye: self._on_image(eye, msg),
-                                     qos_profile_sensor_data)
+            self.create_subscription(
+                Image, topic, guarded(self, f'{topic}: failed on an image',
+                                      lambda msg, eye=eye: self._on_image(eye, msg)),
+                qos_profile_sensor_data)
         self._timer = self.create_timer(1.0 / self._p['publish_rate_hz'], self._on_timer)
         self.get_logger().info(
             f'placeholder: checking {IMAGE_TOPICS["left"]} and {IMAGE_TOPICS["right"]}, '
             f'publishing empty SES cells on {CELLS_TOPIC} at {self._p["publish_rate_hz"]} Hz')
 
     def _on_image(self, eye: str, msg: Any) -> None:
-        try:
-            problem = image_problem(msg)
-            if problem:
-                self.get_logger().warning(f'{IMAGE_TOPICS[eye]}: dropped image: {problem}',
-                                          throttle_duration_sec=5.0)
-                return
-            self._counts[eye] += 1
-        except Exception as exc:  # one bad message never kills the node
-            self.get_logger().error(f'{IMAGE_TOPICS[eye]}: failed on an image: '
-                                    f'{type(exc).__name__}: {exc}', throttle_duration_sec=5.0)
+        problem = image_problem(msg)
+        if problem:
+            self.get_logger().warning(f'{IMAGE_TOPICS[eye]}: dropped image: {problem}',
+                                      throttle_duration_sec=5.0)
+            return
+        self._counts[eye] += 1
 
     def _on_timer(self) -> None:
         header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._p['frame_id'])
@@ -94,31 +86,13 @@ class StereoSesNode(Node):
                                 f'{self._counts["right"]} right images since the last one')
         self._counts = {eye: 0 for eye in IMAGE_TOPICS}
 
-    def _on_set_parameters(self, params: list[Any]) -> Any:
-        for param in params:
-            problem = check_parameter(param.name, param.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-        for param in params:
-            if param.name in self._p:
-                self._p[param.name] = param.value
-            if param.name == 'publish_rate_hz':
-                self._timer.cancel()
-                self.destroy_timer(self._timer)
-                self._timer = self.create_timer(1.0 / param.value, self._on_timer)
-        return SetParametersResult(successful=True)
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'publish_rate_hz' in changed:
+            self._timer = replace_timer(self, self._timer, 1.0 / changed['publish_rate_hz'],
+                                        self._on_timer)
 
 
-def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = StereoSesNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+main = main_for(StereoSesNode)
 
 
 if __name__ == '__main__':

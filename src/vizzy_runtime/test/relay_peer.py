@@ -2,7 +2,8 @@
 
 import sys
 
-from vizzy_runtime.ros import ExternalShutdownException, Node, message, rclpy
+from vizzy_runtime.node_tools import run
+from vizzy_runtime.ros import Node, message
 
 
 class Relay(Node):
@@ -16,15 +17,7 @@ class Relay(Node):
 
 
 def main() -> None:
-    rclpy.init(args=sys.argv)
-    node = Relay()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run(Relay, sys.argv)
 
 
 if __name__ == '__main__':

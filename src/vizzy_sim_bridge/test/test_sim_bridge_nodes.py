@@ -5,7 +5,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from vizzy_runtime.ros import Parameter, rclpy
+from vizzy_runtime.ros import Parameter
+from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
 from vizzy_sim_bridge import gaze_controller_node, sim_node
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
@@ -13,27 +14,9 @@ NODES = [('sim', sim_node), ('gaze_controller', gaze_controller_node)]
 
 
 @pytest.mark.parametrize('node_name, module', NODES)
-def test_parameters_are_described_unique_and_valid(node_name, module) -> None:
-    names = [name for name, _, _ in module.PARAMETERS]
-    assert len(names) == len(set(names))
-    for name, default, description in module.PARAMETERS:
-        assert description.strip(), name
-        assert module.check_parameter(name, default) is None, name
-
-
-@pytest.mark.parametrize('node_name, module', NODES)
-def test_config_names_declared_parameters_with_valid_values(node_name, module) -> None:
-    doc = yaml.safe_load((CONFIG / f'{node_name}.yaml').read_text())
-    assert list(doc) == [node_name]
-    params = doc[node_name]['ros__parameters']
-    declared = {name: default for name, default, _ in module.PARAMETERS}
-    assert set(params) - {'use_sim_time'} <= set(declared)
-    for name, value in params.items():
-        if name == 'use_sim_time':
-            continue
-        # ROS 2 parameters are typed: 15 (integer) does not override 15.0 (double).
-        assert type(value) is type(declared[name]), name
-        assert module.check_parameter(name, value) is None, name
+def test_parameter_table_and_config(node_name, module) -> None:
+    check_parameter_table(module.PARAMETERS, module.check_parameter,
+                          CONFIG / f'{node_name}.yaml', node_name)
 
 
 def test_sim_config_runs_the_sim_on_wall_time() -> None:
@@ -49,35 +32,31 @@ def test_out_of_range_values_are_refused() -> None:
     assert gaze_controller_node.check_parameter('max_fixation_distance_m', 0.0)
 
 
-@pytest.fixture
-def ros_context():
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
-
-
-@pytest.mark.parametrize('make, bad', [
-    (sim_node.SimNode, ('rate_hz', -1.0)),
-    (gaze_controller_node.GazeControllerNode, ('saccade_duration_s', -1.0)),
+@pytest.mark.parametrize('make, module, bad', [
+    (sim_node.SimNode, sim_node, ('rate_hz', -1.0)),
+    (gaze_controller_node.GazeControllerNode, gaze_controller_node, ('saccade_duration_s', -1.0)),
 ])
-def test_node_declares_its_parameters_and_refuses_bad_values(ros_context, make, bad) -> None:
-    ros_node = make()
-    module = sim_node if make is sim_node.SimNode else gaze_controller_node
-    try:
-        for name, default, _ in module.PARAMETERS:
-            value = ros_node.get_parameter(name).value
-            assert (list(value) if isinstance(default, list) else value) == default, name
-        result = ros_node.set_parameters([Parameter(bad[0], value=bad[1])])[0]
-        assert not result.successful and bad[0] in result.reason
-    finally:
-        ros_node.destroy_node()
+def test_node_declares_its_parameters_and_refuses_bad_values(make, module, bad) -> None:
+    with node_under_test(make) as ros_node:
+        check_node_parameters(ros_node, module.PARAMETERS, *bad)
 
 
-def test_sim_refuses_to_follow_its_own_clock(ros_context) -> None:
-    ros_node = sim_node.SimNode()
-    try:
+def test_sim_refuses_to_follow_its_own_clock() -> None:
+    with node_under_test(sim_node.SimNode) as ros_node:
         assert ros_node.get_parameter('use_sim_time').value is False
         result = ros_node.set_parameters([Parameter('use_sim_time', value=True)])[0]
         assert not result.successful
-    finally:
-        ros_node.destroy_node()
+
+
+def test_gaze_controller_refuses_min_fixation_beyond_max() -> None:
+    with node_under_test(gaze_controller_node.GazeControllerNode) as ros_node:
+        result = ros_node.set_parameters([Parameter('min_fixation_distance_m', value=20.0)])[0]
+        assert not result.successful and 'max_fixation_distance_m' in result.reason
+        assert ros_node.get_parameter('min_fixation_distance_m').value == 0.1
+
+
+def test_sim_refuses_read_only_parameters() -> None:
+    with node_under_test(sim_node.SimNode) as ros_node:
+        result = ros_node.set_parameters([Parameter('width', value=320)])[0]
+        assert not result.successful
+        assert ros_node.get_parameter('width').value == 640

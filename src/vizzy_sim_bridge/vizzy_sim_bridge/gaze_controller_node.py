@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from vizzy_runtime.ros import (
-    ExternalShutdownException, Node, ParameterDescriptor, SetParametersResult, message, rclpy)
+from vizzy_runtime.node_tools import declare_parameters, main_for, replace_timer
+from vizzy_runtime.ros import Node, message
 from vizzy_sim_bridge.core.gaze import (
     ActiveRequest, GazeStatus, check_fixation, check_joint_targets, preempts)
 from vizzy_sim_bridge.core.kinematics import (
@@ -47,20 +47,21 @@ def check_parameter(name: str, value: Any) -> str | None:
     return None
 
 
+def check_parameters(values: dict[str, Any]) -> str | None:
+    """What is wrong with the parameters taken together, or None."""
+    if values['min_fixation_distance_m'] >= values['max_fixation_distance_m']:
+        return 'min_fixation_distance_m must be < max_fixation_distance_m'
+    return None
+
+
 class GazeControllerNode(Node):
     """Validates and arbitrates gaze commands; publishes the gaze state."""
 
     def __init__(self) -> None:
         super().__init__('gaze_controller')
-        for name, default, description in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        self._p = {n: self.get_parameter(n).value for n, _, _ in PARAMETERS}
-        problems = [p for p in (check_parameter(n, v) for n, v in self._p.items()) if p]
-        if self._p['min_fixation_distance_m'] >= self._p['max_fixation_distance_m']:
-            problems.append('min_fixation_distance_m must be < max_fixation_distance_m')
-        if problems:
-            raise ValueError('gaze_controller: bad parameters: ' + '; '.join(problems))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+                                     check_all=check_parameters,
+                                     on_change=self._on_parameters_changed)
 
         home = [0.0] * len(JOINT_NAMES)
         self._fixation = fixation_from_joints(home, self._p['max_fixation_distance_m'])
@@ -147,35 +148,13 @@ class GazeControllerNode(Node):
         state.version, state.vergence, state.tilt = (float(a) for a in self._angles)
         self._state_pub.publish(state)
 
-    def _on_set_parameters(self, params: list[Any]) -> Any:
-        new = dict(self._p)
-        for param in params:
-            problem = check_parameter(param.name, param.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-            if param.name in new:
-                new[param.name] = param.value
-        if new['min_fixation_distance_m'] >= new['max_fixation_distance_m']:
-            return SetParametersResult(successful=False, reason=(
-                'min_fixation_distance_m must be < max_fixation_distance_m'))
-        if new['rate_hz'] != self._p['rate_hz']:
-            self._timer.cancel()
-            self.destroy_timer(self._timer)
-            self._timer = self.create_timer(1.0 / new['rate_hz'], self._on_timer)
-        self._p = new
-        return SetParametersResult(successful=True)
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'rate_hz' in changed:
+            self._timer = replace_timer(self, self._timer, 1.0 / changed['rate_hz'],
+                                        self._on_timer)
 
 
-def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = GazeControllerNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+main = main_for(GazeControllerNode)
 
 
 if __name__ == '__main__':

@@ -13,10 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from vizzy_runtime.ros import (
-    USING_REAL_ROS, ExternalShutdownException, Node, Parameter, ParameterDescriptor,
-    SetParametersResult, message, qos_profile_latched, qos_profile_sensor_data, rclpy)
 from vizzy_runtime.convert import numpy_to_image
+from vizzy_runtime.node_tools import declare_parameters, main_for, replace_timer
+from vizzy_runtime.ros import (
+    USING_REAL_ROS, Node, Parameter, SetParametersResult, message, qos_profile_latched,
+    qos_profile_sensor_data)
 from vizzy_sim_bridge.core.camera import camera_matrix, projection_matrix
 from vizzy_sim_bridge.core.kinematics import (
     JOINT_LIMITS, JOINT_NAMES, Transform, joint_transforms, static_transforms)
@@ -88,19 +89,13 @@ class SimNode(Node):
 
     def __init__(self) -> None:
         super().__init__('sim')
-        for name, default, description in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(
-                description=description, read_only=name in READ_ONLY))
-        problems = [p for p in (check_parameter(n, self.get_parameter(n).value)
-                                for n, _, _ in PARAMETERS) if p]
-        if problems:
-            raise ValueError('sim: bad parameters: ' + '; '.join(problems))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-
-        p = {n: self.get_parameter(n).value for n, _, _ in PARAMETERS}
+        p = declare_parameters(self, PARAMETERS, check_parameter, read_only=READ_ONLY,
+                               on_change=self._on_parameters_changed)
         self._width, self._height = int(p['width']), int(p['height'])
         self._joints = [float(q) for q in p['joint_positions']]
         self._publish_clock = bool(p['publish_clock'])
+        # Added after declare_parameters' callback, so it runs first (see there).
+        self.add_on_set_parameters_callback(self._refuse_sim_time)
         if self._publish_clock and self.get_parameter('use_sim_time').value:
             # Following the /clock we publish ourselves would stop every timer at time 0.
             self.get_logger().info('the sim is the /clock source: running on wall time '
@@ -182,37 +177,22 @@ class SimNode(Node):
         self._tf_pub.publish(TFMessage(transforms=self._transforms(
             joint_transforms(self._joints), stamp)))
 
-    def _on_set_parameters(self, params: list[Any]) -> Any:
+    def _refuse_sim_time(self, params: list[Any]) -> Any:
         for param in params:
             if param.name == 'use_sim_time' and param.value and self._publish_clock:
                 return SetParametersResult(
                     successful=False, reason='the sim publishes /clock; it cannot follow it')
-            if param.name in READ_ONLY:
-                return SetParametersResult(successful=False,
-                                           reason=f'{param.name} is read-only; restart the node')
-            problem = check_parameter(param.name, param.value)
-            if problem:
-                return SetParametersResult(successful=False, reason=problem)
-        for param in params:
-            if param.name == 'rate_hz':
-                self._timer.cancel()
-                self.destroy_timer(self._timer)
-                self._timer = self.create_timer(1.0 / float(param.value), self._on_tick)
-            elif param.name == 'joint_positions':
-                self._joints = [float(q) for q in param.value]
         return SetParametersResult(successful=True)
 
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'rate_hz' in changed:
+            self._timer = replace_timer(self, self._timer, 1.0 / float(changed['rate_hz']),
+                                        self._on_tick)
+        if 'joint_positions' in changed:
+            self._joints = [float(q) for q in changed['joint_positions']]
 
-def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = SimNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+
+main = main_for(SimNode)
 
 
 if __name__ == '__main__':
