@@ -155,3 +155,16 @@ def test_timer_and_sim_time(context):
     assert node.get_clock().now().nanoseconds == 3_000_000_000
     assert 5 <= len(ticks) <= 6
     assert all(t % 500_000_000 == 0 for t in ticks)
+
+
+def test_peer_with_another_type_on_our_topic_is_reported(context, capfd):
+    node = Node('typecheck', context=context)
+    node.create_subscription(Image, '/mixed', lambda m: None, 10)
+    writer = dds.RawWriter('/mixed', 'std_msgs/msg/String', dds.QoS())
+    ex = SingleThreadedExecutor(context=context)
+    ex.add_node(node)
+    seen = []
+    assert wait_until(lambda: seen.append(capfd.readouterr().err) or any('/mixed' in e for e in seen), 10, spin=ex)
+    line = next(e for e in seen if '/mixed' in e)
+    assert 'a peer publishes it as std_msgs/msg/String, this node uses sensor_msgs/msg/Image' in line
+    assert writer.matched_count() == 0

@@ -12,6 +12,8 @@ from .node import Node
 
 # Cap on a wait when a timer follows sim time (its deadline moves with /clock, not the wall clock).
 _SIM_TIME_POLL_S = 0.005
+# How often nodes look for peers using their topics with another message type.
+_TYPE_CHECK_PERIOD_S = 2.0
 
 
 class Future:
@@ -49,6 +51,7 @@ class Executor:
         self._nodes: list[Node] = []
         self._lock = threading.Lock()
         self._shutdown = False
+        self._next_type_check = _time.monotonic() + 0.5
 
     def add_node(self, node: Node) -> bool:
         with self._lock:
@@ -74,6 +77,10 @@ class Executor:
 
     def _run_ready(self) -> bool:
         did = False
+        if _time.monotonic() >= self._next_type_check:
+            self._next_type_check = _time.monotonic() + _TYPE_CHECK_PERIOD_S
+            for node in self.get_nodes():
+                node.check_topic_types()
         for node in self.get_nodes():
             for sub in list(node.subscriptions):
                 did |= sub.take_and_dispatch() > 0
@@ -88,7 +95,8 @@ class Executor:
         return did
 
     def _wait_timeout(self, limit: float | None) -> float | None:
-        best = limit
+        best = max(0.0, self._next_type_check - _time.monotonic())
+        best = best if limit is None else min(best, limit)
         for node in self.get_nodes():
             for timer in node.timers:
                 if timer.is_canceled():

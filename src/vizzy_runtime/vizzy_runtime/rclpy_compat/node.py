@@ -214,6 +214,7 @@ class Node:
         self._clock = ROSClock()
         self._clock_sub: Subscription | None = None
         self._destroyed = False
+        self._type_warnings: set[tuple[str, str]] = set()
 
         self._parameters: dict[str, Parameter] = {}
         self._descriptors: dict[str, Any] = {}
@@ -351,6 +352,19 @@ class Node:
         for ep in self.context.discovery().endpoints():
             topics.setdefault(ep.topic, set()).add(ep.typename)
         return sorted((t, sorted(types)) for t, types in topics.items())
+
+    def check_topic_types(self) -> None:
+        """Warn (once per topic and type) about peers using one of our topics with another type:
+        DDS never matches them, so without this the data would just not arrive."""
+        ours = {e.topic: e.typename for e in (*self.publishers, *self.subscriptions)}
+        warned = self._type_warnings
+        for ep in self.context.discovery().endpoints():
+            want = ours.get(ep.topic)
+            if want and ep.typename != want and (ep.topic, ep.typename) not in warned:
+                warned.add((ep.topic, ep.typename))
+                role = 'publishes' if ep.is_writer else 'subscribes to'
+                self._logger.warning(f'[{ep.topic}] a peer {role} it as {ep.typename}, this node uses '
+                                     f'{want}: the two will not connect')
 
     def count_publishers(self, topic_name: str) -> int:
         fqn = self.resolve_topic_name(topic_name)
