@@ -1,6 +1,10 @@
-"""ROS-free algorithms of foveation_node go here.
+"""ROS-free algorithms of foveation_node (numpy/OpenCV/scipy, fully typed, no ROS imports).
 
-numpy/OpenCV/torch only, fully typed, no ROS imports. Planned modules:
-- foveation: the Gaussian-pyramid foveation of an image at a fixation point (Eqs. 2.1-2.4).
-- detection: the feed-forward / feedback passes of the foveated CNN (Fig. 2.5).
+- foveation: smooth foveal vision on a Laplacian pyramid (section 2.3.1, Eqs. 2.1-2.3, 2.6, 2.13):
+  `Foveator` (real time) and `foveate_reference` (direct, full resolution, the ground truth).
+- information: energy and information of foveated images (Eqs. 2.5-2.18, Fig. 2.6).
+- logpolar: `LogPolarRetina`, a log-polar sensor with overlapping Gaussian receptive fields
+  (Eq. 1.1, section 3.3.2), shared with the stereo node.
+- image_checks: input validation (clear ValueErrors); synthetic: seeded test images.
+Planned: detection, the feed-forward / feedback passes of the foveated CNN (Fig. 2.5).
 """

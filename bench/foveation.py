@@ -1,0 +1,108 @@
+"""Foveation benchmark: 640x480 RGB frames on one CPU core (cv2.setNumThreads(1)).
+
+- fovea_fps_640x480: `Foveator.foveate` (subsampled pyramid, K = 5, f_0 = 100 px,
+  sigma_1 = sqrt(8/3)), uint8 in and out (into a reused output array), the fixation moving to
+  another pixel every frame.
+- naive_fps_640x480: `foveate_reference`, the direct full-resolution implementation of the same
+  equations (the tests' ground truth), same parameters.
+- logpolar_fps: `LogPolarRetina(640, 480, 200, 200).to_cortex` (Gaussian RFs) of the same
+  frames.
+- classify_ms, saliency_ms: null until the recognition model lands.
+
+Targets: foveation >= 200 frames/s and >= 10x the direct implementation. Rates are per
+CPU-second of this process's single thread (the cost on one core, robust to other load on a
+shared machine); wall-clock rates are printed alongside.
+
+    .venv/bin/python bench/foveation.py           # last line: one JSON object
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ.setdefault(_var, '1')
+
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'src' / 'foveation_node'))
+from foveation_node.core.foveation import Foveator, foveate_reference  # noqa: E402
+from foveation_node.core.logpolar import LogPolarRetina  # noqa: E402
+from foveation_node.core.synthetic import pink_noise, to_uint8  # noqa: E402
+
+W, H = 640, 480
+F0 = 100.0
+LEVELS = 5
+
+
+def rate(step, min_seconds: float, min_calls: int) -> tuple[float, float]:
+    """(calls per CPU-second, calls per wall-clock second) of step(i), best of three rounds.
+
+    CPU time is this process's, on one thread: the cost on one core, unaffected by other
+    processes sharing the machine (wall-clock is printed alongside).
+    """
+    step(0)
+    best_cpu = best_wall = 0.0
+    for _ in range(3):
+        calls, cpu, wall = 0, time.process_time(), time.perf_counter()
+        while calls < min_calls or time.perf_counter() - wall < min_seconds:
+            step(calls)
+            calls += 1
+        best_cpu = max(best_cpu, calls / max(time.process_time() - cpu, 1e-9))
+        best_wall = max(best_wall, calls / (time.perf_counter() - wall))
+    return best_cpu, best_wall
+
+
+def main() -> None:
+    cv2.setNumThreads(1)
+    frames = [to_uint8(pink_noise(W, H, seed=s)) for s in range(4)]
+    rng = np.random.default_rng(0)
+    # saccade targets are pixels; sub-pixel fixations are timed too (H_0 is then computed, not cut)
+    fixations = [(int(rng.integers(0, W)), int(rng.integers(0, H))) for _ in range(64)]
+    subpixel = [(u + 0.5 if u < W - 1 else u - 0.5, float(v)) for u, v in fixations]
+
+    foveator = Foveator(W, H, LEVELS, F0)
+    out = np.empty_like(frames[0])
+    fovea = rate(lambda i: foveator.foveate(frames[i % 4], fixations[i % 64], out=out), 1.0, 100)
+    fovea_alloc = rate(lambda i: foveator.foveate(frames[i % 4], fixations[i % 64]), 1.0, 100)
+    fovea_sub = rate(lambda i: foveator.foveate(frames[i % 4], subpixel[i % 64], out=out), 1.0, 100)
+    naive = rate(lambda i: foveate_reference(frames[i % 4], fixations[i % 64], F0,
+                                             foveator.sigma_1, LEVELS), 2.0, 3)
+
+    build = time.perf_counter()
+    retina = LogPolarRetina(W, H, rings=200, wedges=200)
+    build = time.perf_counter() - build
+    logpolar = rate(lambda i: retina.to_cortex(frames[i % 4]), 1.0, 20)
+    cortex = retina.to_cortex(frames[0])
+    inverse = rate(lambda i: retina.to_retina(cortex), 1.0, 20)
+    sample = rate(lambda i: retina.sample(frames[i % 4]), 1.0, 20)
+
+    print(f'rates per CPU-second of one thread (wall-clock in brackets); load average '
+          f'{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs')
+    print(f'foveation 640x480 RGB, K={LEVELS}, f0={F0:g}: {fovea[0]:.0f} ({fovea[1]:.0f}) '
+          f'frames/s; '
+          f'{fovea_alloc[0]:.0f} ({fovea_alloc[1]:.0f}) with a fresh output array per frame, '
+          f'{fovea_sub[0]:.0f} ({fovea_sub[1]:.0f}) at sub-pixel fixations')
+    print(f'direct full-resolution reference: {naive[0]:.2f} ({naive[1]:.2f}) frames/s; '
+          f'speed-up {fovea[0] / naive[0]:.0f}x')
+    print(f'targets: >= 200 frames/s: {"met" if fovea[0] >= 200 else "NOT met"}; '
+          f'>= 10x reference: {"met" if fovea[0] >= 10 * naive[0] else "NOT met"}')
+    print(f'log-polar 200x200 on 640x480 RGB: to_cortex {logpolar[0]:.0f} ({logpolar[1]:.0f})/s '
+          f'({sum(m.nnz for m in retina.forward_matrices)} weights over pyramid levels '
+          f'{sorted(set(retina.ring_levels.tolist()))}), to_retina {inverse[0]:.0f} '
+          f'({inverse[1]:.0f})/s, point sampling {sample[0]:.0f} ({sample[1]:.0f})/s; '
+          f'maps built in {build:.2f} s')
+    print(json.dumps({'fovea_fps_640x480': round(fovea[0], 1),
+                      'naive_fps_640x480': round(naive[0], 2),
+                      'logpolar_fps': round(logpolar[0], 1),
+                      'classify_ms': None, 'saliency_ms': None}))
+
+
+if __name__ == '__main__':
+    main()
