@@ -24,6 +24,7 @@ setup(
     entry_points={
         'console_scripts': [
             'mot_planner = mot_planner_node.node:main',
+            'evaluate = mot_planner_node.evaluate:main',
         ],
     },
 )

@@ -1,7 +1,12 @@
-"""ROS-free algorithms of mot_planner_node go here.
+"""ROS-free algorithms of mot_planner_node (thesis chapter 5). numpy/scipy/OpenCV, typed.
 
-numpy/OpenCV/torch only, fully typed, no ROS imports. Planned modules:
-- tracking: one constant-velocity Kalman filter per target (Eqs. 5.1-5.6), with the
-  detector noise model of Eqs. 5.7-5.15.
-- planning: search regions (Eq. 5.18) chosen by MCTS under K_max / S_max.
+- kalman: constant-velocity Kalman filters over stacks of targets (section 5.3.1).
+- observation: sliding-window quantization noise of the detector (Eqs. 5.8-5.15, 5.22).
+- regions: dynamic search regions and the K_max / S_max constraints (Eqs. 5.16-5.20).
+- planner: the resource-constrained POMDP solved online by MCTS/UCT (Eqs. 5.21-5.25).
+- association: Hungarian association on Mahalanobis distance with gating.
+- detector: the detector plug-in interface and OpenCV's HOG people detector.
+- tracker: the per-frame pipeline of Fig. 5.1 (predict, plan, detect, associate, update).
+- motchallenge, metrics: MOTChallenge folders and CLEAR MOT / IDF1 scoring.
+- simulated: synthetic pedestrians and a simulated detector for tests and benchmarks.
 """

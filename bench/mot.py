@@ -1,0 +1,119 @@
+#!/usr/bin/env python3
+"""Benchmark of the resource-constrained tracker (thesis chapter 5). Last line: JSON.
+
+    .venv/bin/python bench/mot.py [--frames 200] [--seeds 0 1 2] [--k-max 3]
+
+What it measures (no simulator recording exists yet, so the scene is synthetic):
+
+1. Tracking: a synthetic 640x480 street (:class:`SyntheticScene`, 8 people 100-170 px tall
+   walking at about 1 px/frame, as in the thesis's TUD-Stadtmitte set-up) seen by the
+   simulated sliding-window detector (:class:`SimulatedDetector`: HOG's 64x128 window,
+   8 px stride, 1.05 scale step, quantized boxes, 95 % detection, 0.5 false positives per
+   full frame, occlusion). The tracker runs twice per seed with the thesis protocol
+   (bootstrap on frame 1, no track births after it): detector on every full frame, and the
+   MCTS planner with K_max, S_max = 0.1, 10 ms budget. ``motp_delta_vs_full`` is the
+   planner's MOTP minus the full-frame MOTP (thesis Eq. 5.26: percent overlap, averaged over
+   seeds); ``plan_ms_p95`` is the 95th percentile of the planner's wall time per frame.
+2. Detector time: OpenCV's HOG people detector (the default plug-in) is run for real on a
+   rendering of each frame (textured background, a blob per person; HOG's cost hardly
+   depends on content) over exactly the regions the planner chose that frame, and over the
+   full frame (every 10th frame: its cost is constant). ``detector_speedup_at_smax_0.1`` =
+   mean full-frame HOG time / mean planner HOG time per frame, frames 2..n.
+3. ``frame_ms``: mean per-frame time of the planner pipeline = tracker step (prediction,
+   planning, association, update) without the simulated detector + the HOG time on that
+   frame's regions.
+
+Timings depend on the machine and its load (reported as ``load_avg_1min``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+from mot_planner_node.core.detector import HogDetector
+from mot_planner_node.core.planner import PlannerConfig
+from mot_planner_node.core.simulated import render, replay_detector_time, track_synthetic
+from mot_planner_node.core.tracker import TrackerConfig
+
+SIZE = (640, 480)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    p.add_argument('--frames', type=int, default=200)
+    p.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
+    p.add_argument('--k-max', type=int, default=3)
+    p.add_argument('--s-max', type=float, default=0.1)
+    p.add_argument('--budget-ms', type=float, default=10.0)
+    p.add_argument('--full-every', type=int, default=10,
+                   help='time full-frame HOG on every n-th frame')
+    args = p.parse_args()
+
+    hog = HogDetector()
+    motp_delta, plan_ms, frame_ms, full_det, plan_det = [], [], [], [], []
+    per_seed = []
+    t_start = time.perf_counter()
+    for seed in args.seeds:
+        planner = PlannerConfig(k_max=args.k_max, s_max=args.s_max, budget_ms=args.budget_ms,
+                                seed=seed)
+        full = track_synthetic(TrackerConfig(mode='full', new_tracks='none', planner=planner),
+                               n_frames=args.frames, seed=seed, image_size=SIZE)
+        plan = track_synthetic(TrackerConfig(mode='planner', new_tracks='none', planner=planner),
+                               n_frames=args.frames, seed=seed, image_size=SIZE)
+        images = [render(f, SIZE, seed) for f in plan.frames]
+        det_plan = replay_detector_time(hog, images[1:], plan.regions[1:])
+        idx = list(range(1, args.frames, args.full_every))
+        det_full = replay_detector_time(hog, [images[i] for i in idx], [None] * len(idx))
+        plan_det += det_plan
+        full_det += det_full
+        plan_ms += [1e3 * s for s in plan.plan_s[1:]]
+        frame_ms += [1e3 * (s + d) for s, d in zip(plan.step_s[1:], det_plan)]
+        motp_delta.append(plan.metrics['motp'] - full.metrics['motp'])
+        per_seed.append({
+            'seed': seed,
+            'motp_planner': round(plan.metrics['motp'], 3),
+            'motp_full': round(full.metrics['motp'], 3),
+            'mota_planner': round(plan.metrics['mota'], 3),
+            'mota_full': round(full.metrics['mota'], 3),
+            'idf1_planner': round(plan.metrics['idf1'], 3),
+            'idf1_full': round(full.metrics['idf1'], 3),
+            'processed_fraction': round(float(np.mean(
+                [((r[:, 2] - r[:, 0]) * (r[:, 3] - r[:, 1])).sum() / (SIZE[0] * SIZE[1])
+                 if len(r) else 0.0 for r in plan.regions[1:]])), 4),
+        })
+        print(f'seed {seed}: MOTP planner {plan.metrics["motp"]:.2f} / full '
+              f'{full.metrics["motp"]:.2f}; HOG {1e3 * np.mean(det_plan):.1f} ms / '
+              f'{1e3 * np.mean(det_full):.1f} ms', file=sys.stderr, flush=True)
+
+    summary = {
+        'detector_speedup_at_smax_0.1': round(float(np.mean(full_det) / np.mean(plan_det)), 2),
+        'motp_delta_vs_full': round(float(np.mean(motp_delta)), 3),
+        'plan_ms_p95': round(float(np.percentile(plan_ms, 95)), 3),
+        'frame_ms': round(float(np.mean(frame_ms)), 3),
+        'planner_detector_ms': round(1e3 * float(np.mean(plan_det)), 3),
+        'full_frame_detector_ms': round(1e3 * float(np.mean(full_det)), 3),
+        'plan_ms_p50': round(float(np.percentile(plan_ms, 50)), 3),
+        'budget_ms': args.budget_ms,
+        'k_max': args.k_max,
+        's_max': args.s_max,
+        'frames': args.frames,
+        'per_seed': per_seed,
+        'image_size': list(SIZE),
+        'load_avg_1min': round(os.getloadavg()[0], 2),
+        'cpus': os.cpu_count(),
+        'wall_s': round(time.perf_counter() - t_start, 1),
+    }
+    print(f'detector {summary["detector_speedup_at_smax_0.1"]}x less time than full frame; '
+          f'MOTP delta {summary["motp_delta_vs_full"]:+.2f} points; plan p95 '
+          f'{summary["plan_ms_p95"]} ms', file=sys.stderr, flush=True)
+    print(json.dumps(summary), flush=True)
+
+
+if __name__ == '__main__':
+    main()

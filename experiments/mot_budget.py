@@ -1,0 +1,218 @@
+#!/usr/bin/env python3
+"""Thesis Fig. 5.3: detector time and MOTP against the attention budget (K_max, S_max).
+
+    .venv/bin/python experiments/mot_budget.py --motchallenge ../shared/data/mot17-mini
+    .venv/bin/python experiments/mot_budget.py --synthetic [--frames 150]
+
+For every K_max in {1, 2, 3, 4} and S_max in [0.1, 1.0] the planner tracks the sequences
+``--trials`` times (different MCTS seeds; the thesis ran 100), against the full-frame
+baseline (detector on every full frame). Tracking follows the thesis protocol: tracks start
+from a full-frame detection on the first frame, none are created later.
+
+- ``--motchallenge DIR``: MOTChallenge sequences (a sequence folder or a folder of them) with
+  OpenCV's HOG people detector. The first frame's full-frame detection is computed once per
+  sequence and shared by all runs; detector time is per frame from frame 2 on.
+- ``--synthetic``: the benchmark's synthetic street (bench/mot.py) with the simulated
+  detector for tracking; detector time is HOG's, run for real on each frame's chosen regions
+  (see bench/mot.py).
+(The simulator's pedestrian recording comes later.)
+
+Writes experiments/results/mot_budget_<name>.png (2x2: detector time and speed-up against
+S_max, MOTP and MOTA against S_max, one line per K_max, dashed: full frame) and .json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from mot_planner_node.core.detector import Detections, HogDetector  # noqa: E402
+from mot_planner_node.core.metrics import summarize  # noqa: E402
+from mot_planner_node.core.motchallenge import find_sequences, load_sequence  # noqa: E402
+from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
+from mot_planner_node.core.simulated import (render, replay_detector_time,  # noqa: E402
+                                             track_synthetic)
+from mot_planner_node.core.tracker import MotTracker, TrackerConfig  # noqa: E402
+from mot_planner_node.evaluate import read_frame, run_sequence, timing_summary  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / 'results'
+THESIS = {'dataset': 'TUD-Stadtmitte, 640x480, 179 frames', 'detector_s_at_smax_0.1': 0.02,
+          'full_frame_detector_s': 0.24, 'speedup_at_smax_0.1': 12.0}
+
+
+class SharedFullFrames:
+    """Wraps a detector: full-frame results are computed once per image object and reused
+    (the bootstrap frame of every run); region calls go through."""
+
+    def __init__(self, detector: HogDetector) -> None:
+        self.detector = detector
+        self.geometry = detector.geometry
+        self.box_shrink = detector.box_shrink
+        self._cache: dict[int, Detections] = {}
+
+    def detect(self, image: np.ndarray, regions: np.ndarray | None = None) -> Detections:
+        if regions is not None:
+            return self.detector.detect(image, regions)
+        key = id(image)
+        if key not in self._cache:
+            self._cache[key] = self.detector.detect(image)
+        return self._cache[key]
+
+
+def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], trials: int,
+                      budget_ms: float) -> dict[str, Any]:
+    seqs = [load_sequence(p) for p in find_sequences(path)]
+    images = {s.name: [read_frame(s, i)[0] for i in range(len(s))] for s in seqs}
+    hog = HogDetector()
+    shared = SharedFullFrames(hog)
+
+    def run_all(cfg: TrackerConfig, detector: Any) -> dict[str, Any]:
+        runs = {s.name: run_sequence(s, MotTracker(detector, cfg), images=images[s.name],
+                                     progress=False) for s in seqs}
+        m = summarize({n: r.evaluator for n, r in runs.items()})['OVERALL']
+        return {**m, **timing_summary(list(runs.values()))}
+
+    print('full-frame baseline ...', file=sys.stderr, flush=True)
+    baseline = run_all(TrackerConfig(mode='full', new_tracks='none'), hog)
+    for s in seqs:                              # seed the cache with the bootstrap frames
+        shared.detect(images[s.name][0])
+    cells = []
+    grid = [(k, s, t) for k in k_values for s in s_values for t in range(trials)]
+    for k, s, t in tqdm(grid, desc='K_max x S_max x trial', file=sys.stderr):
+        cfg = TrackerConfig(mode='planner', new_tracks='none',
+                            planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t))
+        cells.append({'k_max': k, 's_max': s, 'trial': t, **run_all(cfg, shared)})
+    return {'sequences': [s.name for s in seqs], 'frames': sum(len(s) for s in seqs),
+            'baseline': baseline, 'cells': cells}
+
+
+def synthetic_grid(k_values: list[int], s_values: list[float], trials: int, budget_ms: float,
+                   frames: int) -> dict[str, Any]:
+    hog = HogDetector()
+    size = (640, 480)
+
+    def timed(run: Any, seed: int, full: bool) -> dict[str, Any]:
+        images = [render(f, size, seed) for f in run.frames[1:]]
+        if full:                                # constant cost: every 10th frame
+            det = replay_detector_time(hog, images[::10], [None] * len(images[::10]))
+        else:
+            det = replay_detector_time(hog, images, run.regions[1:])
+        return {**run.metrics, 'detector_ms_after_bootstrap': 1e3 * float(np.mean(det)),
+                'plan_ms_p95': 1e3 * float(np.percentile(run.plan_s[1:], 95))}
+
+    base = [timed(track_synthetic(TrackerConfig(mode='full', new_tracks='none'),
+                                  n_frames=frames, seed=t), t, True) for t in range(trials)]
+    baseline = {k: float(np.mean([b[k] for b in base])) for k in
+                ('mota', 'motp', 'idf1', 'detector_ms_after_bootstrap')}
+    cells = []
+    grid = [(k, s, t) for k in k_values for s in s_values for t in range(trials)]
+    for k, s, t in tqdm(grid, desc='K_max x S_max x trial', file=sys.stderr):
+        cfg = TrackerConfig(mode='planner', new_tracks='none',
+                            planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t))
+        cells.append({'k_max': k, 's_max': s, 'trial': t,
+                      **timed(track_synthetic(cfg, n_frames=frames, seed=t), t, False)})
+    return {'sequences': ['synthetic'], 'frames': frames * trials, 'baseline': baseline,
+            'cells': cells}
+
+
+def aggregate(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """Mean and std over trials per (K_max, S_max)."""
+    out = []
+    keys = sorted({(c['k_max'], c['s_max']) for c in result['cells']})
+    base_ms = result['baseline']['detector_ms_after_bootstrap']
+    for k, s in keys:
+        cs = [c for c in result['cells'] if (c['k_max'], c['s_max']) == (k, s)]
+        row: dict[str, Any] = {'k_max': k, 's_max': s, 'trials': len(cs)}
+        for m in ('detector_ms_after_bootstrap', 'motp', 'mota', 'idf1', 'plan_ms_p95'):
+            v = np.array([c[m] for c in cs if c.get(m) is not None], dtype=float)
+            row[m] = float(v.mean()) if v.size else None
+            row[m + '_std'] = float(v.std()) if v.size else None
+        row['speedup'] = base_ms / row['detector_ms_after_bootstrap']
+        out.append(row)
+    return out
+
+
+def plot(result: dict[str, Any], rows: list[dict[str, Any]], path: Path, title: str) -> None:
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    base = result['baseline']
+    ks = sorted({r['k_max'] for r in rows})
+    panels = [(axes[0, 0], 'detector_ms_after_bootstrap', 'detector time per frame [ms]',
+               base['detector_ms_after_bootstrap']),
+              (axes[0, 1], 'speedup', 'detector speed-up vs full frame', 1.0),
+              (axes[1, 0], 'motp', 'MOTP [% overlap]', base['motp']),
+              (axes[1, 1], 'mota', 'MOTA', base['mota'])]
+    for ax, key, label, ref in panels:
+        for k in ks:
+            rs = [r for r in rows if r['k_max'] == k]
+            err = [r.get(key + '_std') or 0.0 for r in rs]
+            ax.errorbar([r['s_max'] for r in rs], [r[key] for r in rs], yerr=err, marker='o',
+                        capsize=3, label=f'K_max = {k}')
+        if ref is not None:
+            ax.axhline(ref, color='k', ls='--', label='full frame')
+        ax.set_xlabel('S_max (fraction of the image)')
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_yscale('log')
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument('--motchallenge', type=Path, help='sequence folder or folder of them')
+    src.add_argument('--synthetic', action='store_true')
+    p.add_argument('--k-max', type=int, nargs='+', default=[1, 2, 3, 4])
+    p.add_argument('--s-max', type=float, nargs='+',
+                   default=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0])
+    p.add_argument('--trials', type=int, default=3)
+    p.add_argument('--budget-ms', type=float, default=10.0)
+    p.add_argument('--frames', type=int, default=150, help='synthetic frames per trial')
+    p.add_argument('--name', default=None, help='output name (default: data set name)')
+    args = p.parse_args()
+
+    if args.synthetic:
+        name = args.name or 'synthetic'
+        result = synthetic_grid(args.k_max, args.s_max, args.trials, args.budget_ms, args.frames)
+        title = f'Synthetic street, {args.frames} frames x {args.trials} trials (HOG timing)'
+    else:
+        name = args.name or args.motchallenge.resolve().name
+        result = motchallenge_grid(args.motchallenge, args.k_max, args.s_max, args.trials,
+                                   args.budget_ms)
+        title = (f'{name}: {len(result["sequences"])} sequences, {result["frames"]} frames, '
+                 f'HOG, {args.trials} trials')
+    rows = aggregate(result)
+    RESULTS.mkdir(exist_ok=True)
+    png, out = RESULTS / f'mot_budget_{name}.png', RESULTS / f'mot_budget_{name}.json'
+    plot(result, rows, png, title)
+    summary = {'name': name, 'sequences': result['sequences'], 'frames': result['frames'],
+               'trials': args.trials, 'budget_ms': args.budget_ms,
+               'baseline': result['baseline'], 'grid': rows, 'thesis': THESIS,
+               'runs': result['cells']}
+    out.write_text(json.dumps(summary, indent=1, default=float) + '\n')
+    at = [r for r in rows if abs(r['s_max'] - 0.1) < 1e-9]
+    for r in at:
+        print(f'K_max={r["k_max"]} S_max=0.1: detector {r["detector_ms_after_bootstrap"]:.1f} ms '
+              f'vs {result["baseline"]["detector_ms_after_bootstrap"]:.1f} ms full frame '
+              f'({r["speedup"]:.1f}x; thesis 12x), MOTP {r["motp"]:.2f} vs '
+              f'{result["baseline"]["motp"]:.2f}', file=sys.stderr)
+    print(f'wrote {png} and {out}', file=sys.stderr)
+    print(json.dumps({'name': name, 'png': str(png), 'json': str(out),
+                      'at_smax_0.1': at}), flush=True)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,353 @@
+"""Resource-constrained multiple object tracker: the pipeline of Fig. 5.1.
+
+Each frame: predict every target's belief (Eq. 5.3); plan which search regions to attend
+(MCTS, sections 5.3.3-5.3.5) or take the full frame; run the detector only there; associate
+detections to targets (Hungarian on Mahalanobis distance, gated); update the matched beliefs
+(Eq. 5.2) with the observation model's noise at the detected scale (Eqs. 5.8-5.15); manage
+the track set.
+
+Track births: the first frame is a full-frame detection and every detection starts a track
+(section 5.4's bootstrap). The thesis created no tracks after that; as its future work
+suggests, ``new_tracks`` can also start them from unmatched detections:
+
+- ``'none'``: the thesis protocol (bootstrap only);
+- ``'periodic'``: a full-frame detection every ``full_frame_period`` frames;
+- ``'sweep'``: each frame also scans one vertical strip of the image (``sweep_fraction`` of
+  its width, plus one window width of overlap), cycling over the image; its area counts in
+  the detector time.
+
+Tracks born after the bootstrap are tentative until detected ``confirm_hits`` times and
+dropped on their first miss. A track is deleted when it has been missed more than
+``max_misses`` consecutive times in frames where its region was processed, when its centre
+leaves the image, or when its position uncertainty exceeds ``max_std_frac`` of its window
+size (it can no longer be found).
+
+Bad input (not uint8, empty, wrong shape, a frame size that differs from the first frame)
+raises :class:`FrameError` before anything changes; all per-frame work is done on copies and
+committed at the end, so an exception from the detector also leaves the tracker as it was.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .association import associate, gate_threshold
+from .detector import Detections, Detector, box_iou, check_image
+from .kalman import STATE_DIM, MotionModel, predict, update
+from .observation import ObservationModel
+from .planner import MctsPlanner, PlannerConfig
+from .regions import full_frame_region, region_areas
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+
+class FrameError(ValueError):
+    """A frame the tracker cannot use; the tracker's state is unchanged."""
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Tracker settings (the planner's are in :class:`PlannerConfig`).
+
+    mode: 'planner' (attend the planned regions) or 'full' (detector on every full frame:
+        the baseline).
+    new_tracks, full_frame_period, sweep_fraction: track births (module docstring).
+    confirm_hits: detections a track born after the bootstrap needs before it is reported.
+    max_misses: most consecutive misses (in processed frames) a track survives.
+    max_std_frac: delete when the centre std exceeds this fraction of the window size.
+    gate_probability: chi-square gate of the association.
+    init_velocity_std, init_scale_velocity_std: velocity std of a new track at scale 1
+        (pixels/frame, scale/frame), times its scale.
+    quantization: 'worst' (thesis) or 'uniform' (authors' code), see :class:`ObservationModel`.
+    extra_detector_std: detector noise beyond quantization, fraction of the window [u, v, s].
+    new_track_iou: an unmatched detection overlapping a track's window by more than this
+        does not start a new track.
+    """
+
+    mode: Literal['planner', 'full'] = 'planner'
+    new_tracks: Literal['none', 'periodic', 'sweep'] = 'periodic'
+    full_frame_period: int = 30
+    sweep_fraction: float = 0.05
+    confirm_hits: int = 2
+    max_misses: int = 5
+    max_std_frac: float = 1.5
+    gate_probability: float = 0.99
+    init_velocity_std: float = 4.0
+    init_scale_velocity_std: float = 0.02
+    quantization: str = 'worst'
+    extra_detector_std: tuple[float, float, float] = (0.05, 0.05, 0.05)
+    new_track_iou: float = 0.3
+    motion: MotionModel = field(default_factory=MotionModel)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.mode not in ('planner', 'full'):
+            problems.append(f"mode must be 'planner' or 'full', got {self.mode!r}")
+        if self.new_tracks not in ('none', 'periodic', 'sweep'):
+            problems.append(f"new_tracks must be 'none', 'periodic' or 'sweep', "
+                            f'got {self.new_tracks!r}')
+        if self.full_frame_period < 1:
+            problems.append(f'full_frame_period must be >= 1, got {self.full_frame_period}')
+        if not 0.0 < self.sweep_fraction <= 1.0:
+            problems.append(f'sweep_fraction must be in (0, 1], got {self.sweep_fraction}')
+        if self.confirm_hits < 1 or self.max_misses < 1:
+            problems.append('confirm_hits and max_misses must be >= 1')
+        if self.max_std_frac <= 0:
+            problems.append(f'max_std_frac must be > 0, got {self.max_std_frac}')
+        if problems:
+            raise ValueError('TrackerConfig: ' + '; '.join(problems))
+
+
+@dataclass
+class Tracks:
+    """The track set as arrays (K rows): ids, beliefs (x (K, 6), P (K, 6, 6)), counters."""
+
+    ids: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))
+    x: FloatArray = field(default_factory=lambda: np.zeros((0, STATE_DIM)))
+    P: FloatArray = field(default_factory=lambda: np.zeros((0, STATE_DIM, STATE_DIM)))
+    hits: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))
+    misses: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))
+    confirmed: BoolArray = field(default_factory=lambda: np.zeros(0, bool))
+
+    def __len__(self) -> int:
+        return int(self.ids.shape[0])
+
+    def select(self, mask: BoolArray | IntArray) -> 'Tracks':
+        return Tracks(self.ids[mask], self.x[mask], self.P[mask], self.hits[mask],
+                      self.misses[mask], self.confirmed[mask])
+
+    def concat(self, other: 'Tracks') -> 'Tracks':
+        return Tracks(*(np.concatenate([a, b]) for a, b in
+                        zip((self.ids, self.x, self.P, self.hits, self.misses, self.confirmed),
+                            (other.ids, other.x, other.P, other.hits, other.misses,
+                             other.confirmed))))
+
+
+@dataclass
+class FrameResult:
+    """What one frame produced.
+
+    ids, boxes (n, 4) x, y, w, h object boxes, states (n, 6), covariances (n, 6, 6): the
+    confirmed tracks. regions (m, 6): the processed regions (one full-image row for a
+    full-frame detection). attended_ids: tracks whose region was processed. detections: the
+    detector's window boxes. detector_s, plan_s, total_s: wall times.
+    """
+
+    frame: int
+    ids: IntArray
+    boxes: FloatArray
+    states: FloatArray
+    covariances: FloatArray
+    regions: FloatArray
+    attended_ids: IntArray
+    detections: Detections
+    full_frame: bool
+    detector_s: float = 0.0
+    plan_s: float = 0.0
+    total_s: float = 0.0
+    plan_iterations: int = 0
+    processed_fraction: float = 0.0
+    created: int = 0
+    deleted: int = 0
+
+
+class MotTracker:
+    """Tracker of Fig. 5.1 around a :class:`Detector`."""
+
+    def __init__(self, detector: Detector, cfg: TrackerConfig | None = None) -> None:
+        if not isinstance(detector, Detector):
+            raise TypeError('detector must have geometry, box_shrink and detect(image, regions)')
+        self.cfg = cfg or TrackerConfig()
+        self.detector = detector
+        self.observation = ObservationModel(detector.geometry, self.cfg.extra_detector_std,
+                                            self.cfg.quantization)
+        self.planner = MctsPlanner(self.cfg.planner, self.cfg.motion, self.observation)
+        self.gate = gate_threshold(self.cfg.gate_probability)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every track and the frame size; the next frame bootstraps."""
+        self.tracks = Tracks()
+        self.frame_index = 0
+        self.image_size: tuple[int, int] | None = None
+        self._next_id = 1
+
+    # --- helpers --------------------------------------------------------------------------
+
+    def window_boxes(self, x: FloatArray) -> FloatArray:
+        """Detector-window boxes (K, 4) x, y, w, h of states or measurements x (K, >= 3)."""
+        g = self.detector.geometry
+        w, h = x[:, 2] * g.window_w, x[:, 2] * g.window_h
+        return np.stack([x[:, 0] - w / 2, x[:, 1] - h / 2, w, h], axis=1)
+
+    def object_boxes(self, x: FloatArray) -> FloatArray:
+        """Object boxes (K, 4) of states x: window boxes through the detector's box shrink."""
+        return self.detector.box_shrink.apply(self.window_boxes(x))
+
+    def _measurements(self, det: Detections) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """z (M, 3) = [centre u, centre v, scale] of valid detections, R (M, 3, 3), scores."""
+        boxes = np.asarray(det.boxes, dtype=float).reshape(-1, 4)
+        scores = np.asarray(det.scores, dtype=float).reshape(-1)
+        if scores.shape[0] != boxes.shape[0]:
+            raise ValueError(f'detector returned {boxes.shape[0]} boxes but '
+                             f'{scores.shape[0]} scores')
+        ok = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > 0) & (boxes[:, 3] > 0)
+        boxes, scores = boxes[ok], scores[ok]
+        z = np.stack([boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2,
+                      boxes[:, 3] / self.detector.geometry.window_h], axis=1)
+        return z, self.observation.covariance(z[:, 2]), scores
+
+    def _new_tracks(self, z: FloatArray, confirmed: bool) -> Tracks:
+        n = z.shape[0]
+        s = z[:, 2]
+        P = np.zeros((n, STATE_DIM, STATE_DIM))
+        P[:, :3, :3] = self.observation.covariance(s)
+        i = np.arange(3, 6)
+        vel = np.stack([self.cfg.init_velocity_std * s, self.cfg.init_velocity_std * s,
+                        self.cfg.init_scale_velocity_std * s], axis=1)
+        P[:, i, i] = vel ** 2
+        x = np.concatenate([z, np.zeros((n, 3))], axis=1)
+        ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
+        return Tracks(ids, x, P, np.ones(n, np.int64), np.zeros(n, np.int64),
+                      np.full(n, confirmed))
+
+    def _check(self, image: object) -> tuple[NDArray[np.uint8], tuple[int, int]]:
+        try:
+            image = check_image(image)
+        except ValueError as exc:
+            raise FrameError(f'frame {self.frame_index}: {exc}') from None
+        size = (int(image.shape[1]), int(image.shape[0]))
+        if self.image_size is not None and size != self.image_size:
+            raise FrameError(
+                f'frame {self.frame_index}: frame size changed from {self.image_size[0]}x'
+                f'{self.image_size[1]} to {size[0]}x{size[1]}; call reset() to start over at '
+                'the new size')
+        return image, size
+
+    def _sweep_region(self, size: tuple[int, int]) -> FloatArray:
+        width, height = size
+        n = int(np.ceil(1.0 / self.cfg.sweep_fraction))
+        i = self.frame_index % n
+        overlap = self.detector.geometry.window_w
+        x0 = max(i * width / n - overlap, 0.0)
+        x1 = min((i + 1) * width / n + overlap, float(width))
+        return np.array([[x0, 0.0, x1, float(height), self.detector.geometry.min_scale, np.inf]])
+
+    # --- the frame loop -------------------------------------------------------------------
+
+    def coast(self) -> FrameResult:
+        """Advance one frame without an image (e.g. a corrupt frame): predict only."""
+        t0 = time.perf_counter()
+        tracks = self.tracks
+        if len(tracks):
+            x, P = predict(tracks.x, tracks.P, self.cfg.motion)
+            tracks = replace(tracks, x=x, P=P)
+        tracks, deleted = self._prune(tracks)
+        self.tracks = tracks
+        return self._result(Detections.empty(), np.zeros((0, 6)), np.zeros(0, np.int64), False,
+                            0.0, 0.0, t0, 0, 0, deleted, 0.0)
+
+    def step(self, image: NDArray[np.uint8]) -> FrameResult:
+        """Process one frame; returns the confirmed tracks and what was attended."""
+        t0 = time.perf_counter()
+        image, size = self._check(image)
+        cfg = self.cfg
+        width, height = size
+        bootstrap = self.image_size is None
+        full = (bootstrap or cfg.mode == 'full'
+                or (cfg.new_tracks == 'periodic' and self.frame_index % cfg.full_frame_period == 0))
+        tracks = self.tracks
+        if len(tracks):
+            x, P = predict(tracks.x, tracks.P, cfg.motion)
+            tracks = replace(tracks, x=x, P=P)
+        plan_s, iterations = 0.0, 0
+        if full:
+            regions = full_frame_region(size, self.detector.geometry)
+            attended = np.ones(len(tracks), bool)
+            det_regions = None
+        else:
+            plan = self.planner.plan(tracks.x, tracks.P, size)
+            plan_s, iterations = plan.plan_s, plan.iterations
+            attended = plan.action
+            regions = plan.regions[attended]
+            if cfg.new_tracks == 'sweep':
+                regions = np.concatenate([regions, self._sweep_region(size)])
+            det_regions = regions
+        t_det = time.perf_counter()
+        det = (self.detector.detect(image, det_regions) if det_regions is None or len(det_regions)
+               else Detections.empty())
+        detector_s = time.perf_counter() - t_det
+        z, R, _ = self._measurements(det)
+
+        assoc = associate(tracks.x, tracks.P, z, R, self.gate)
+        m_t, m_d = assoc.matches[:, 0], assoc.matches[:, 1]
+        x, P = tracks.x.copy(), tracks.P.copy()
+        if m_t.size:
+            x[m_t], P[m_t] = update(x[m_t], P[m_t], z[m_d], R[m_d])
+        hits, misses = tracks.hits.copy(), tracks.misses.copy()
+        matched = np.zeros(len(tracks), bool)
+        matched[m_t] = True
+        hits[matched] += 1
+        misses[matched] = 0
+        missed = attended & ~matched
+        misses[missed] += 1
+        confirmed = tracks.confirmed | (hits >= cfg.confirm_hits)
+        tracks = Tracks(tracks.ids, x, P, hits, misses, confirmed)
+        # Tentative tracks die on their first miss.
+        n_before = len(tracks)
+        tracks = tracks.select(~(missed & ~tracks.confirmed) | bootstrap)
+        deleted = n_before - len(tracks)
+
+        created = 0
+        if bootstrap or cfg.new_tracks != 'none':
+            z_new = z[assoc.unmatched_detections]
+            if len(tracks) and z_new.shape[0]:
+                iou = box_iou(self.window_boxes(z_new), self.window_boxes(tracks.x))
+                z_new = z_new[~(iou > cfg.new_track_iou).any(axis=1)]
+            if z_new.shape[0]:
+                born = self._new_tracks(z_new, confirmed=bootstrap)
+                self._next_id += z_new.shape[0]
+                tracks = tracks.concat(born)
+                created = z_new.shape[0]
+        self.image_size = size
+        tracks, pruned = self._prune(tracks)
+        attended_ids = self.tracks.ids[attended] if len(self.tracks) else np.zeros(0, np.int64)
+        self.tracks = tracks
+        processed = float(region_areas(regions).sum())
+        return self._result(det, regions, attended_ids, full, detector_s, plan_s, t0,
+                            iterations, created, deleted + pruned, processed / (width * height))
+
+    def _prune(self, tracks: Tracks) -> tuple[Tracks, int]:
+        """Delete tracks after too many misses, out of the image, or lost (module docstring)."""
+        if not len(tracks) or self.image_size is None:
+            return tracks, 0
+        width, height = self.image_size
+        g = self.detector.geometry
+        x, P = tracks.x, tracks.P
+        inside = (x[:, 0] >= 0) & (x[:, 0] < width) & (x[:, 1] >= 0) & (x[:, 1] < height)
+        s = np.maximum(x[:, 2], 1e-6)
+        sharp = ((np.sqrt(P[:, 0, 0]) <= self.cfg.max_std_frac * s * g.window_w)
+                 & (np.sqrt(P[:, 1, 1]) <= self.cfg.max_std_frac * s * g.window_h))
+        keep = inside & sharp & (tracks.misses <= self.cfg.max_misses) & (x[:, 2] > 0)
+        return tracks.select(keep), int((~keep).sum())
+
+    def _result(self, det: Detections, regions: FloatArray, attended_ids: IntArray, full: bool,
+                detector_s: float, plan_s: float, t0: float, iterations: int, created: int,
+                deleted: int, processed: float) -> FrameResult:
+        t = self.tracks.select(self.tracks.confirmed)
+        result = FrameResult(
+            frame=self.frame_index, ids=t.ids.copy(), boxes=self.object_boxes(t.x),
+            states=t.x.copy(), covariances=t.P.copy(), regions=regions,
+            attended_ids=attended_ids, detections=det, full_frame=full, detector_s=detector_s,
+            plan_s=plan_s, total_s=time.perf_counter() - t0, plan_iterations=iterations,
+            processed_fraction=processed, created=created, deleted=deleted)
+        self.frame_index += 1
+        return result

@@ -1,0 +1,253 @@
+"""Evaluate the resource-constrained tracker on MOTChallenge-format sequences.
+
+    evaluate SEQUENCE_OR_FOLDER [...] [--k-max 3] [--s-max 0.1] [--mode both] [...]
+
+Each argument is a sequence folder (``img1/``, ``gt/gt.txt``, optionally ``seqinfo.ini``) or a
+folder of them. The tracker runs with the planner (given K_max, S_max) and/or with the
+detector on every full frame (the baseline); CLEAR MOT metrics (MOTA, MOTP, IDF1 via
+py-motmetrics) and timings are printed as one JSON object on the last line of stdout (a
+table goes to stderr unless ``--quiet``).
+
+Timing figures per mode: ``detector_ms_per_frame`` (all frames, including the first, which
+is always a full-frame detection to start the tracks), ``detector_ms_after_bootstrap``
+(frames 2..n: the figure the planner changes), ``plan_ms_p95``, ``frame_ms`` (the tracker's
+whole step, detector included) and ``processed_fraction`` (image share the detector read).
+``detector_speedup`` = full-frame / planner detector time after the bootstrap; ``motp_delta``
+= planner MOTP - full-frame MOTP (percentage points of overlap, thesis Eq. 5.26).
+
+A frame that cannot be read or used (missing, corrupt, other size) is reported in
+``bad_frames``; the tracker predicts through it. A malformed folder or gt file stops with a
+message naming the file and line (exit status 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence as Seq
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from .core.detector import Detector, HogDetector
+from .core.kalman import MotionModel
+from .core.metrics import MotEvaluator, summarize
+from .core.motchallenge import MotFolderError, Sequence, find_sequences, load_sequence
+from .core.planner import PlannerConfig
+from .core.regions import AREA_MODES
+from .core.tracker import FrameError, MotTracker, TrackerConfig
+
+MODES = {'planner': 'planner', 'full': 'full_frame'}
+
+
+@dataclass
+class SequenceRun:
+    """One sequence through one tracker: metrics accumulator and per-frame timings."""
+
+    evaluator: MotEvaluator
+    detector_s: list[float] = field(default_factory=list)
+    plan_s: list[float] = field(default_factory=list)
+    total_s: list[float] = field(default_factory=list)
+    processed: list[float] = field(default_factory=list)
+    bad_frames: list[dict[str, Any]] = field(default_factory=list)
+
+
+def read_frame(seq: Sequence, index: int) -> tuple[np.ndarray | None, str | None]:
+    """Frame ``index`` (0-based) as a BGR array, or (None, why it cannot be used)."""
+    path = seq.frame_paths[index]
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        return None, f'{path.name}: cannot be read or decoded'
+    if seq.image_size is not None and (image.shape[1], image.shape[0]) != seq.image_size:
+        return None, (f'{path.name}: {image.shape[1]}x{image.shape[0]}, but seqinfo.ini says '
+                      f'{seq.image_size[0]}x{seq.image_size[1]}')
+    return image, None
+
+
+def run_sequence(seq: Sequence, tracker: MotTracker, max_frames: int | None = None,
+                 images: Seq[np.ndarray | None] | None = None, progress: bool = True,
+                 label: str = '') -> SequenceRun:
+    """Track one sequence and accumulate its metrics (images may be given pre-loaded)."""
+    tracker.reset()
+    run = SequenceRun(MotEvaluator())
+    n = len(seq) if max_frames is None else min(len(seq), max_frames)
+    for i in tqdm(range(n), desc=f'{seq.name} {label}'.strip(), unit='frame', disable=not progress,
+                  leave=False, file=sys.stderr):
+        if images is not None and images[i] is not None:
+            image, problem = images[i], None
+        else:
+            image, problem = read_frame(seq, i)
+        result = None
+        if image is not None:
+            try:
+                result = tracker.step(image)
+            except FrameError as exc:
+                problem = str(exc)
+        if result is None:
+            run.bad_frames.append({'sequence': seq.name, 'frame': i + 1, 'problem': problem})
+            result = tracker.coast()
+        run.detector_s.append(result.detector_s)
+        run.plan_s.append(result.plan_s)
+        run.total_s.append(result.total_s)
+        run.processed.append(result.processed_fraction)
+        gt_ids, gt_boxes, distractors = seq.gt.frame(i + 1)
+        run.evaluator.update(i + 1, gt_ids, gt_boxes, result.ids, result.boxes, distractors)
+    return run
+
+
+def timing_summary(runs: Seq[SequenceRun]) -> dict[str, float | None]:
+    """Timing figures (module docstring) over the frames of the given runs."""
+    det = np.concatenate([np.asarray(r.detector_s) for r in runs]) if runs else np.zeros(0)
+    after = np.concatenate([np.asarray(r.detector_s[1:]) for r in runs]) if runs else np.zeros(0)
+    plan = np.concatenate([np.asarray(r.plan_s[1:]) for r in runs]) if runs else np.zeros(0)
+    total = np.concatenate([np.asarray(r.total_s) for r in runs]) if runs else np.zeros(0)
+    proc = np.concatenate([np.asarray(r.processed[1:]) for r in runs]) if runs else np.zeros(0)
+
+    def ms(a: np.ndarray, f: Callable[[np.ndarray], float]) -> float | None:
+        return round(1e3 * float(f(a)), 3) if a.size else None
+
+    return {
+        'detector_ms_per_frame': ms(det, np.mean),
+        'detector_ms_after_bootstrap': ms(after, np.mean),
+        'plan_ms_mean': ms(plan, np.mean),
+        'plan_ms_p95': ms(plan, lambda a: np.percentile(a, 95)),
+        'frame_ms': ms(total, np.mean),
+        'processed_fraction': round(float(proc.mean()), 4) if proc.size else None,
+    }
+
+
+def make_detector(spec: str, args: argparse.Namespace) -> Detector:
+    """'hog' or 'package.module:factory' (a callable returning a Detector)."""
+    if spec == 'hog':
+        return HogDetector(win_stride=args.win_stride, scale=args.scale,
+                           hit_threshold=args.hit_threshold)
+    module, _, name = spec.partition(':')
+    if not name:
+        raise ValueError(f"--detector must be 'hog' or 'module:factory', got {spec!r}")
+    detector = getattr(importlib.import_module(module), name)()
+    if not isinstance(detector, Detector):
+        raise ValueError(f'{spec} did not return a detector (geometry, box_shrink, detect)')
+    return detector
+
+
+def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
+    planner = PlannerConfig(k_max=args.k_max, s_max=args.s_max, area=args.area,
+                            alpha_c=args.alpha_c, alpha_s=args.alpha_s,
+                            budget_ms=args.budget_ms, max_iterations=args.iterations,
+                            seed=args.seed)
+    return TrackerConfig(mode=mode, new_tracks=args.new_tracks,
+                         full_frame_period=args.period,
+                         motion=MotionModel(accel_std=args.accel_std), planner=planner)
+
+
+def evaluate(paths: Seq[str | Path], args: argparse.Namespace,
+             detector: Detector | None = None) -> dict[str, Any]:
+    """Run every mode on every sequence and return the JSON-ready result."""
+    seq_paths: list[Path] = []
+    for p in paths:
+        seq_paths += find_sequences(p)
+    sequences = [load_sequence(p) for p in seq_paths]
+    detector = detector or make_detector(args.detector, args)
+    modes = ['planner', 'full'] if args.mode == 'both' else [args.mode]
+    out: dict[str, Any] = {'config': {k: v for k, v in vars(args).items() if k != 'paths'},
+                           'sequences': {}, 'overall': {}, 'bad_frames': []}
+    runs: dict[str, dict[str, SequenceRun]] = {m: {} for m in modes}
+    progress = not args.quiet
+    for seq in sequences:
+        images: list[np.ndarray | None] | None = None
+        if len(modes) > 1:                    # decode once for both modes
+            images = [read_frame(seq, i)[0] for i in range(
+                len(seq) if args.max_frames is None else min(len(seq), args.max_frames))]
+        for mode in modes:
+            tracker = MotTracker(detector, tracker_config(args, mode))
+            runs[mode][seq.name] = run_sequence(seq, tracker, args.max_frames, images,
+                                                progress, MODES[mode])
+        out['bad_frames'] += runs[modes[0]][seq.name].bad_frames
+    for mode in modes:
+        metrics = summarize({n: r.evaluator for n, r in runs[mode].items()})
+        for name, run in runs[mode].items():
+            block = out['sequences'].setdefault(name, {'frames': len(run.detector_s)})
+            block[MODES[mode]] = {**metrics[name], **timing_summary([run])}
+        out['overall'][MODES[mode]] = {**metrics['OVERALL'],
+                                       **timing_summary(list(runs[mode].values()))}
+    if len(modes) == 2:
+        for block in [*out['sequences'].values(), out['overall']]:
+            p, f = block['planner'], block['full_frame']
+            pd, fd = p['detector_ms_after_bootstrap'], f['detector_ms_after_bootstrap']
+            block['detector_speedup'] = (round(fd / pd, 2) if pd and fd else None)
+            block['motp_delta'] = (round(p['motp'] - f['motp'], 3)
+                                   if p['motp'] is not None and f['motp'] is not None else None)
+    return out
+
+
+def print_table(result: dict[str, Any]) -> None:
+    cols = ('mota', 'motp', 'idf1', 'num_switches', 'detector_ms_after_bootstrap',
+            'processed_fraction')
+    blocks = [*result['sequences'].items(), ('OVERALL', result['overall'])]
+    rows = [(name, mode, block[mode]) for name, block in blocks
+            for mode in ('planner', 'full_frame') if mode in block]
+    print(f'{"sequence":18s} {"mode":10s} ' + ' '.join(f'{c[:12]:>12s}' for c in cols),
+          file=sys.stderr)
+    for name, mode, m in rows:
+        cells = ' '.join(f'{m[c]:12.3f}' if isinstance(m[c], (int, float)) else f'{"-":>12s}'
+                         for c in cols)
+        print(f'{name:18s} {mode:10s} {cells}', file=sys.stderr)
+    for problem in result['bad_frames']:
+        print(f'bad frame: {problem["sequence"]} {problem["frame"]}: {problem["problem"]}',
+              file=sys.stderr)
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog='evaluate', description=__doc__.split('\n\n')[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument('paths', nargs='+', help='MOTChallenge sequence folders or folders of them')
+    p.add_argument('--mode', choices=('planner', 'full', 'both'), default='both',
+                   help='planner, full-frame baseline, or both')
+    p.add_argument('--k-max', type=int, default=3, help='K_max: regions per frame')
+    p.add_argument('--s-max', type=float, default=0.1, help='S_max: image fraction per frame')
+    p.add_argument('--area', choices=AREA_MODES, default='centres',
+                   help='what S_max counts (docs/mot_planner.md)')
+    p.add_argument('--alpha-c', type=float, default=1.0, help='centre width of a region (Eq. 5.18)')
+    p.add_argument('--alpha-s', type=float, default=1.0, help='scale width of a region (Eq. 5.19)')
+    p.add_argument('--budget-ms', type=float, default=10.0, help='planning time per frame')
+    p.add_argument('--iterations', type=int, default=None, help='MCTS iteration cap')
+    p.add_argument('--seed', type=int, default=0, help='MCTS random seed')
+    p.add_argument('--new-tracks', choices=('none', 'periodic', 'sweep'), default='none',
+                   help="track births after the first frame ('none': the thesis protocol)")
+    p.add_argument('--period', type=int, default=30, help='frames between full-frame detections')
+    p.add_argument('--accel-std', type=float, default=MotionModel().accel_std,
+                   help='motion model acceleration std, px/frame^2 at scale 1')
+    p.add_argument('--detector', default='hog', help="'hog' or 'package.module:factory'")
+    p.add_argument('--win-stride', type=int, default=8, help='HOG window stride')
+    p.add_argument('--scale', type=float, default=1.05, help='HOG pyramid scale step')
+    p.add_argument('--hit-threshold', type=float, default=0.0, help='HOG SVM threshold')
+    p.add_argument('--max-frames', type=int, default=None, help='first n frames of each sequence')
+    p.add_argument('--output', type=Path, default=None, help='also write the JSON here')
+    p.add_argument('--quiet', action='store_true', help='no progress bars or table')
+    return p
+
+
+def main(argv: Seq[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        result = evaluate(args.paths, args)
+    except (MotFolderError, ValueError) as exc:
+        print(f'evaluate: error: {exc}', file=sys.stderr)
+        return 2
+    if not args.quiet:
+        print_table(result)
+    text = json.dumps(result, default=str)
+    if args.output is not None:
+        args.output.write_text(json.dumps(result, indent=2, default=str) + '\n')
+    print(text, flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,254 @@
+"""The tracker: identities on synthetic motion, bootstrap, births and deaths, bad input."""
+
+import numpy as np
+import pytest
+
+from mot_planner_node.core.detector import (HOG_SHRINK, BoxShrink, Detections, HogDetector,
+                                            box_iou, nms)
+from mot_planner_node.core.metrics import MotEvaluator, summarize
+from mot_planner_node.core.observation import DetectorGeometry
+from mot_planner_node.core.planner import PlannerConfig
+from mot_planner_node.core.simulated import (SimulatedDetector, SyntheticScene, track_synthetic,
+                                             visibility)
+from mot_planner_node.core.tracker import FrameError, MotTracker, TrackerConfig
+
+SIZE = (640, 480)
+BLANK = np.zeros((480, 640, 3), np.uint8)
+
+
+def lanes(n_frames: int = 80) -> list[np.ndarray]:
+    """Four people walking in separate lanes (no occlusion), object boxes per frame."""
+    heights = np.array([100.0, 115.0, 130.0, 145.0])
+    x0 = np.array([40.0, 560.0, 120.0, 480.0])
+    vx = np.array([2.0, -1.5, 1.0, -2.5])
+    feet = np.array([150.0, 260.0, 360.0, 460.0]) - 20
+    out = []
+    for t in range(n_frames):
+        cx = x0 + vx * t
+        w = 0.41 * heights
+        out.append(np.stack([cx - w / 2, feet - heights, w, heights], axis=1))
+    return out
+
+
+def planner_cfg(**kw) -> TrackerConfig:
+    p = dict(k_max=2, s_max=0.1, budget_ms=None, max_iterations=80, seed=0)
+    return TrackerConfig(mode='planner', new_tracks='none',
+                         planner=PlannerConfig(**{**p, **kw}))
+
+
+@pytest.mark.parametrize('mode', ['planner', 'full'])
+def test_identities_kept_on_moving_boxes(mode: str) -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0, seed=1)
+    cfg = planner_cfg() if mode == 'planner' else TrackerConfig(mode='full', new_tracks='none')
+    tracker = MotTracker(det, cfg)
+    ev = MotEvaluator()
+    ids = np.arange(1, 5)
+    for t, boxes in enumerate(lanes()):
+        det.p_detect = 1.0 if t == 0 else 0.9     # everyone found at the bootstrap, then misses
+        det.set_truth(boxes)
+        r = tracker.step(BLANK)
+        if mode == 'planner' and t > 0:
+            assert len(r.regions) <= 2
+            assert not r.full_frame
+        ev.update(t + 1, ids, boxes, r.ids, r.boxes)
+    m = summarize({'s': ev})['s']
+    assert m['num_switches'] == 0
+    assert m['num_false_positives'] == 0
+    assert m['idf1'] > 0.95 and m['mota'] > 0.95
+    assert m['motp'] > 70.0
+
+
+def test_bootstrap_makes_one_track_per_detection_and_regions_follow() -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0, jitter=0.0)
+    tracker = MotTracker(det, planner_cfg(k_max=4, s_max=1.0))
+    frames = lanes(3)
+    det.set_truth(frames[0])
+    r0 = tracker.step(BLANK)
+    assert r0.full_frame and r0.frame == 0 and r0.created == 4
+    assert r0.ids.tolist() == [1, 2, 3, 4]
+    assert (box_iou(r0.boxes, frames[0]).max(axis=1) > 0.6).all()
+    det.set_truth(frames[1])
+    r1 = tracker.step(BLANK)
+    assert not r1.full_frame and r1.plan_s > 0
+    assert sorted(r1.attended_ids.tolist()) == [1, 2, 3, 4]
+    # Each attended region holds its person's window.
+    win = HOG_SHRINK.invert(frames[1])
+    cx, cy = win[:, 0] + win[:, 2] / 2, win[:, 1] + win[:, 3] / 2
+    inside = ((r1.regions[:, None, 0] <= cx) & (cx <= r1.regions[:, None, 2])
+              & (r1.regions[:, None, 1] <= cy) & (cy <= r1.regions[:, None, 3]))
+    assert inside.any(axis=0).all()
+
+
+def test_tracks_die_after_misses_and_births_come_from_full_frames() -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0, jitter=0.0)
+    cfg = TrackerConfig(mode='full', new_tracks='none', max_misses=3)
+    tracker = MotTracker(det, cfg)
+    frames = lanes(10)
+    det.set_truth(frames[0])
+    tracker.step(BLANK)
+    det.set_truth(frames[1][:2])                 # two people vanish
+    deleted = [tracker.step(BLANK).deleted for _ in range(5)]
+    assert sum(deleted) == 2 and len(tracker.tracks) == 2
+    # Periodic full frames start (tentative, then confirmed) tracks for newcomers.
+    det2 = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0, jitter=0.0)
+    t2 = MotTracker(det2, TrackerConfig(mode='planner', new_tracks='periodic',
+                                        full_frame_period=2, confirm_hits=2,
+                                        planner=PlannerConfig(budget_ms=None, max_iterations=20,
+                                                              seed=0)))
+    det2.set_truth(frames[0][:1])
+    assert t2.step(BLANK).ids.tolist() == [1]
+    det2.set_truth(frames[1][:1])
+    t2.step(BLANK)
+    det2.set_truth(frames[2][:2])                # frame 2: full frame, newcomer
+    r = t2.step(BLANK)
+    assert r.full_frame and r.created == 1 and r.ids.tolist() == [1]   # tentative: not shown
+    det2.set_truth(frames[3][:2])
+    r = t2.step(BLANK)
+    assert r.ids.tolist() == [1, 2]
+
+
+def test_sweep_adds_a_strip() -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0)
+    t = MotTracker(det, TrackerConfig(new_tracks='sweep', sweep_fraction=0.25,
+                                      planner=PlannerConfig(budget_ms=None, max_iterations=10)))
+    det.set_truth(lanes(1)[0])
+    t.step(BLANK)
+    r = t.step(BLANK)
+    strip = r.regions[-1]
+    assert strip[1] == 0 and strip[3] == 480 and strip[2] - strip[0] <= 640 / 4 + 2 * 64
+
+
+def test_bad_frames_leave_the_tracker_as_it_was() -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0)
+    tracker = MotTracker(det, planner_cfg())
+    det.set_truth(lanes(1)[0])
+    tracker.step(BLANK)
+    before = (tracker.tracks.x.copy(), tracker.tracks.P.copy(), tracker.frame_index)
+    bad = [np.zeros((0, 640, 3), np.uint8), np.zeros((480, 640, 3), np.float32),
+           np.zeros((480, 640, 4), np.uint8), 'not an image', None,
+           np.zeros((240, 320, 3), np.uint8)]
+    messages = []
+    for image in bad:
+        with pytest.raises(FrameError) as exc:
+            tracker.step(image)
+        messages.append(str(exc.value))
+    assert 'empty' in messages[0] and 'uint8' in messages[1] and 'HxW' in messages[2]
+    assert 'numpy array' in messages[3]
+    assert 'frame size changed from 640x480 to 320x240' in messages[5]
+    np.testing.assert_array_equal(tracker.tracks.x, before[0])
+    np.testing.assert_array_equal(tracker.tracks.P, before[1])
+    assert tracker.frame_index == before[2]
+    # Still works on good frames; reset() accepts a new size.
+    assert len(tracker.step(BLANK).ids) == 4
+    tracker.reset()
+    det.set_truth(np.zeros((0, 4)))
+    r = tracker.step(np.zeros((240, 320), np.uint8))
+    assert r.frame == 0 and len(r.ids) == 0
+
+
+class Broken:
+    """A detector that fails, then returns garbage."""
+
+    geometry = DetectorGeometry()
+    box_shrink = BoxShrink()
+
+    def __init__(self) -> None:
+        self.mode = 'ok'
+
+    def detect(self, image, regions=None) -> Detections:
+        if self.mode == 'raise':
+            raise RuntimeError('detector crashed')
+        if self.mode == 'nan':
+            return Detections(np.array([[np.nan, 0, 10, 10], [0, 0, -5, 10]]), np.ones(2))
+        return Detections(np.array([[100.0, 100.0, 64.0, 128.0]]), np.ones(1))
+
+
+def test_detector_failures_keep_the_state_consistent() -> None:
+    det = Broken()
+    tracker = MotTracker(det, TrackerConfig(mode='full', new_tracks='none', max_misses=10))
+    tracker.step(BLANK)
+    x = tracker.tracks.x.copy()
+    det.mode = 'raise'
+    with pytest.raises(RuntimeError):
+        tracker.step(BLANK)
+    np.testing.assert_array_equal(tracker.tracks.x, x)
+    assert tracker.frame_index == 1
+    det.mode = 'nan'                     # invalid boxes are dropped: a plain miss
+    r = tracker.step(BLANK)
+    assert r.ids.tolist() == [1] and tracker.tracks.misses.tolist() == [1]
+    c = tracker.coast()                  # e.g. a frame that could not be decoded
+    assert c.frame == 2 and c.ids.tolist() == [1] and not c.full_frame
+    assert tracker.tracks.P[0, 0, 0] > 0
+
+
+def test_no_detections_at_all() -> None:
+    det = SimulatedDetector(p_detect=0.0, false_positives_per_frame=0.0)
+    tracker = MotTracker(det, planner_cfg())
+    for boxes in lanes(5):
+        det.set_truth(boxes)
+        r = tracker.step(BLANK)
+        assert len(r.ids) == 0 and len(r.detections.boxes) == 0
+
+
+def test_tracker_refuses_non_detectors_and_bad_config() -> None:
+    with pytest.raises(TypeError, match='detect'):
+        MotTracker(object())
+    with pytest.raises(ValueError, match='mode'):
+        TrackerConfig(mode='sometimes')
+    with pytest.raises(ValueError, match='new_tracks'):
+        TrackerConfig(new_tracks='always')
+
+
+def test_synthetic_scene_and_run() -> None:
+    scene = SyntheticScene(n_people=5, seed=2)
+    frames = scene.frames(30)
+    for f in frames:
+        assert f.boxes.shape == (5, 4)
+        win = HOG_SHRINK.invert(f.boxes)
+        assert (win[:, 1] + win[:, 3] <= 480 + 1e-6).all()      # windows fit the image
+        assert (f.boxes[:, 3] >= 99.9).all()
+    vis = visibility(np.array([[0, 0, 10, 10], [0, 0, 10, 20.0]]))
+    np.testing.assert_allclose(vis, [0.0, 1.0])
+    run = track_synthetic(TrackerConfig(planner=PlannerConfig(budget_ms=None, max_iterations=20,
+                                                              seed=0)), n_frames=20, seed=2)
+    assert len(run.regions) == 20 and run.metrics['num_frames'] == 20
+
+
+def test_box_shrink_and_nms() -> None:
+    boxes = np.array([[10.0, 20.0, 64.0, 128.0]])
+    obj = HOG_SHRINK.apply(boxes)
+    assert obj[0, 3] == pytest.approx(128 * HOG_SHRINK.height)
+    assert obj[0, 0] + obj[0, 2] / 2 == pytest.approx(42.0)
+    np.testing.assert_allclose(HOG_SHRINK.invert(obj), boxes)
+    b = np.array([[0, 0, 10, 10], [1, 1, 10, 10], [50, 50, 10, 10.0]])
+    assert nms(b, np.array([0.5, 0.9, 0.1])).tolist() == [1, 2]
+
+
+def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
+    hog = HogDetector()
+    seen = []
+
+    def fake_run(crop, padding=None):
+        seen.append(crop.shape)
+        return Detections(np.array([[10.0, 20.0, 64.0, 128.0]]), np.array([1.5]))
+
+    monkeypatch.setattr(hog, '_run', fake_run)
+    image = np.zeros((480, 640, 3), np.uint8)
+    d = hog.detect(image, np.array([[100.0, 50.0, 300.0, 450.0, 2.0, 3.0]]))
+    # The 200x400 crop is scanned at half size (s_lo = 2); boxes come back scaled and shifted.
+    assert seen == [(200, 100, 3)]
+    np.testing.assert_allclose(d.boxes, [[120.0, 90.0, 128.0, 256.0]])
+    # Regions outside the image are skipped.
+    seen.clear()
+    d = hog.detect(image, np.array([[700.0, 0.0, 800.0, 100.0, 1.0, 1.0]]))
+    assert seen == [] and d.boxes.shape == (0, 4)
+
+
+def test_hog_runs_on_plain_images() -> None:
+    hog = HogDetector()
+    d = hog.detect(np.full((200, 160, 3), 128, np.uint8))
+    assert d.boxes.shape[1] == 4 and d.scores.shape[0] == d.boxes.shape[0]
+    tiny = hog.detect(np.zeros((50, 40), np.uint8))
+    assert tiny.boxes.shape == (0, 4)
+    with pytest.raises(ValueError, match='empty'):
+        hog.detect(np.zeros((0, 10, 3), np.uint8))
