@@ -11,6 +11,7 @@ Loopback only unless VIZZY_DDS_LAN=1: see loopback_config().
 
 from __future__ import annotations
 
+import atexit
 import ctypes as ct
 import os
 import threading
@@ -91,6 +92,23 @@ def participant() -> DomainParticipant:
                 _domain = Domain(did, loopback_config())
             _participant = DomainParticipant(did, qos=Qos(Policy.Userdata(ENCLAVE_USER_DATA)))
         return _participant
+
+
+def _delete_participant_at_exit() -> None:
+    """Delete the participant (and with it every reader, writer and listener) before the
+    interpreter tears itself down: a listener called from a Cyclone thread into a finalizing
+    interpreter crashes the process (seen as a rare SIGSEGV at node exit)."""
+    global _participant
+    with _lock:
+        if _participant is not None:
+            try:
+                _participant._delete(_participant._ref)
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+            _participant = None
+
+
+atexit.register(_delete_participant_at_exit)
 
 
 # --- types -------------------------------------------------------------------------------------

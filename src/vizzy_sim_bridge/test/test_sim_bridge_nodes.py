@@ -26,15 +26,19 @@ def test_sim_config_runs_the_sim_on_wall_time() -> None:
 
 def test_out_of_range_values_are_refused() -> None:
     assert sim_node.check_parameter('rate_hz', 0.0)
-    assert sim_node.check_parameter('joint_positions', [0.0] * 4)
-    assert sim_node.check_parameter('joint_positions', [5.0, 0.0, 0.0, 0.0, 0.0])
-    assert gaze_controller_node.check_parameter('saccade_duration_s', -0.1)
+    assert sim_node.check_parameter('initial_joint_positions', [0.0] * 4)
+    assert sim_node.check_parameter('initial_joint_positions', [float('nan')] + [0.0] * 4)
+    assert sim_node.check_parameter('scene', 'kitchen')
+    assert sim_node.check_parameter('render_backend', 'vulkan')
+    assert sim_node.check_parameters({'rgbd_min_range_m': 2.0, 'rgbd_max_range_m': 1.0})
+    assert gaze_controller_node.check_parameter('saccade_min_duration_s', -0.1)
     assert gaze_controller_node.check_parameter('max_fixation_distance_m', 0.0)
 
 
 @pytest.mark.parametrize('make, module, bad', [
     (sim_node.SimNode, sim_node, ('rate_hz', -1.0)),
-    (gaze_controller_node.GazeControllerNode, gaze_controller_node, ('saccade_duration_s', -1.0)),
+    (gaze_controller_node.GazeControllerNode, gaze_controller_node,
+     ('saccade_min_duration_s', -1.0)),
 ])
 def test_node_declares_its_parameters_and_refuses_bad_values(make, module, bad) -> None:
     with node_under_test(make) as ros_node:
@@ -52,7 +56,7 @@ def test_gaze_controller_refuses_min_fixation_beyond_max() -> None:
     with node_under_test(gaze_controller_node.GazeControllerNode) as ros_node:
         result = ros_node.set_parameters([Parameter('min_fixation_distance_m', value=20.0)])[0]
         assert not result.successful and 'max_fixation_distance_m' in result.reason
-        assert ros_node.get_parameter('min_fixation_distance_m').value == 0.1
+        assert ros_node.get_parameter('min_fixation_distance_m').value == 0.15
 
 
 def test_sim_refuses_read_only_parameters() -> None:

@@ -1,78 +1,154 @@
-"""The `sim` node: a placeholder simulated Vizzy head (until the MuJoCo simulator replaces it).
+"""The `sim` node: the Vizzy head simulated in MuJoCo, with the thesis's scenes.
 
-Publishes a synthetic moving stereo pair with camera info, the joint states (held at the
-`joint_positions` parameter), the head's transforms and, as the graph's time source, /clock.
+Physics runs at 500 Hz in its own thread, keeping sim time with wall time; this node publishes
+that sim time on /clock (it runs on wall time itself) and stamps everything with it.
+
+Publishes (frames and QoS in docs/vizzy_sim_bridge.md):
+  /vizzy/{left,right}/image_raw (rgb8) + camera_info       every 1/rate_hz (sensor data QoS)
+  /vizzy/rgbd/image_raw (rgb8), /vizzy/rgbd/depth/image_raw (32FC1 [m], NaN invalid),
+  /vizzy/rgbd/points (organized x y z rgb), /vizzy/rgbd/camera_info   every 1/rgbd_rate_hz
+  /joint_states, /tf                                       every 1/joint_state_rate_hz, and at
+                                                           each image's stamp
+  /tf_static (latched), /clock
+  /sim/ground_truth/objects (MarkerArray, latched): every object with its dimensions;
+      cylinders also as an axis arrow (ns cylinder_axes)
+  /sim/ground_truth/pedestrians (MarkerArray, 3D boxes) and
+  /sim/ground_truth/{left,right}/pedestrians (active_vision_msgs/TrackArray: each walker's box
+      in that camera's image [px]), pedestrians scene only, with each stereo pair
+Subscribes:
+  /vizzy/joint_commands (sensor_msgs/JointState): name + position targets [rad]; velocity (if
+      given, same length) caps each joint's speed. Out-of-range targets are clamped with a
+      warning; unknown names, NaN or mismatched lengths reject the message with an error log.
 """
 
 from __future__ import annotations
 
 import array
 import math
+import sys
+import threading
 import time
 from typing import Any
 
+import mujoco
 import numpy as np
 
-from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.node_tools import declare_parameters, main_for, replace_timer
+from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
+from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import (
     USING_REAL_ROS, Node, Parameter, SetParametersResult, message, qos_profile_latched,
     qos_profile_sensor_data)
-from vizzy_sim_bridge.core.camera import camera_matrix, projection_matrix
+from vizzy_sim_bridge.core.camera import camera_matrix, project, projection_matrix
 from vizzy_sim_bridge.core.kinematics import (
-    JOINT_LIMITS, JOINT_NAMES, Transform, joint_transforms, static_transforms)
-from vizzy_sim_bridge.core.pattern import SyntheticStereoScene
+    BASELINE, CAMERA_FRAMES, JOINT_LIMITS, JOINT_NAMES, RGBD_FRAME, WAIST_HEIGHT, Transform,
+    frames_in_base, joint_transforms, rotation_matrix, static_transforms)
+from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
+from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
+from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
+from vizzy_sim_bridge.core.scenes import SCENE_NAMES, SceneUnavailable, build_scene
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 Clock = message('rosgraph_msgs/msg/Clock')
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
 JointState = message('sensor_msgs/msg/JointState')
+Marker = message('visualization_msgs/msg/Marker')
+MarkerArray = message('visualization_msgs/msg/MarkerArray')
+Point = message('geometry_msgs/msg/Point')
 TFMessage = message('tf2_msgs/msg/TFMessage')
 TimeMsg = message('builtin_interfaces/msg/Time')
+Track = message('active_vision_msgs/msg/Track')
+TrackArray = message('active_vision_msgs/msg/TrackArray')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
+
+COMMAND_TOPIC = '/vizzy/joint_commands'
+EYES = ('left', 'right')
 
 # (name, default, description): the node declares exactly these.
 PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('rate_hz', 15.0, 'Rate of images, camera info, joint states and /tf [Hz], in (0, 120].'),
-    ('width', 640, 'Image width [px] (read-only).'),
-    ('height', 480, 'Image height [px] (read-only).'),
-    ('horizontal_fov_deg', 85.4, 'Horizontal field of view of each camera [deg] (read-only).'),
-    ('baseline_m', 0.204, 'Stereo baseline between the camera centres [m] (read-only).'),
-    ('joint_positions', [0.0, 0.0, 0.0, 0.0, 0.0],
-     'Joint positions held by the head [rad], in the order ' + ', '.join(JOINT_NAMES) + '.'),
+    ('scene', 'tabletop', 'Scene: ' + ', '.join(SCENE_NAMES) + ' (read-only).'),
+    ('seed', 0, 'Seed of the scene layout and of the depth noise, >= 0 (read-only).'),
+    ('pedestrian_count', 4, 'Walkers in the pedestrians scene, in [1, 20] (read-only).'),
+    ('rate_hz', 15.0, 'Rate of the stereo images and their camera_info [Hz], in (0, 60].'),
+    ('rgbd_rate_hz', 5.0, 'Rate of the RGB-D image, depth, points and camera_info [Hz], in '
+     '[0, 30]; 0 switches the RGB-D sensor off.'),
+    ('joint_state_rate_hz', 100.0, 'Rate of /joint_states and /tf [Hz], in (0, 500].'),
+    ('width', 640, 'Eye camera image width [px] (read-only).'),
+    ('height', 480, 'Eye camera image height [px] (read-only).'),
+    ('horizontal_fov_deg', 85.4, 'Horizontal field of view of each eye camera [deg] (read-only).'),
+    ('rgbd_width', 640, 'RGB-D image width [px] (read-only).'),
+    ('rgbd_height', 480, 'RGB-D image height [px] (read-only).'),
+    ('rgbd_horizontal_fov_deg', 58.0, 'Horizontal field of view of the RGB-D sensor [deg] '
+     '(read-only).'),
+    ('depth_noise_coefficient', 1.425e-3, 'Depth noise sigma_z = c z^2: c [1/m], in [0, 0.05]; '
+     '0 = noise-free depth (Khoshelham & Elberink 2012: 1.425e-3).'),
+    ('rgbd_min_range_m', 0.5, 'Nearest valid depth [m], in [0, 10); nearer is NaN.'),
+    ('rgbd_max_range_m', 3.5, 'Farthest valid depth [m], in (0, 50]; farther is NaN.'),
+    ('initial_joint_positions', [0.0, 0.0, 0.0, 0.0, 0.0],
+     'Joint targets at start [rad], in the order ' + ', '.join(JOINT_NAMES) +
+     '; clamped into the joint limits (read-only).'),
+    ('render_backend', 'auto', 'OpenGL for rendering: auto (EGL, else OSMesa), egl or osmesa '
+     '(read-only).'),
+    ('ground_truth_rate_hz', 1.0, 'Rate of republishing /sim/ground_truth/objects [Hz], in '
+     '(0, 100].'),
     ('publish_clock', True,
      'Publish /clock (simulated time starting at 0) and stamp messages with it (read-only). '
      'The sim itself must run with use_sim_time false.'),
     ('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in (0, 1000] (read-only).'),
 )
-READ_ONLY = frozenset({'width', 'height', 'horizontal_fov_deg', 'baseline_m', 'publish_clock',
-                       'clock_rate_hz'})
+READ_ONLY = frozenset({'scene', 'seed', 'pedestrian_count', 'width', 'height',
+                       'horizontal_fov_deg', 'rgbd_width', 'rgbd_height',
+                       'rgbd_horizontal_fov_deg', 'initial_joint_positions', 'render_backend',
+                       'publish_clock', 'clock_rate_hz'})
 
 
 def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name, or None if it is."""
-    if name == 'rate_hz' and not 0.0 < value <= 120.0:
-        return f'rate_hz must be in (0, 120], got {value}'
-    if name in ('width', 'height') and not 16 <= value <= 8192:
-        return f'{name} must be in [16, 8192] px, got {value}'
-    if name == 'horizontal_fov_deg' and not 1.0 <= value <= 170.0:
-        return f'horizontal_fov_deg must be in [1, 170], got {value}'
-    if name == 'baseline_m' and not 0.0 < value <= 1.0:
-        return f'baseline_m must be in (0, 1] m, got {value}'
+    if name == 'scene' and value not in SCENE_NAMES:
+        return f'scene must be one of {", ".join(SCENE_NAMES)}, got {value!r}'
+    if name == 'seed' and not 0 <= value <= 2 ** 63 - 1:
+        return f'seed must be >= 0, got {value}'
+    if name == 'pedestrian_count' and not 1 <= value <= 20:
+        return f'pedestrian_count must be in [1, 20], got {value}'
+    if name == 'rate_hz' and not 0.0 < value <= 60.0:
+        return f'rate_hz must be in (0, 60], got {value}'
+    if name == 'rgbd_rate_hz' and not 0.0 <= value <= 30.0:
+        return f'rgbd_rate_hz must be in [0, 30], got {value}'
+    if name == 'joint_state_rate_hz' and not 0.0 < value <= 500.0:
+        return f'joint_state_rate_hz must be in (0, 500], got {value}'
+    if name in ('width', 'height', 'rgbd_width', 'rgbd_height') and not 16 <= value <= 4096:
+        return f'{name} must be in [16, 4096] px, got {value}'
+    if name in ('horizontal_fov_deg', 'rgbd_horizontal_fov_deg') and not 1.0 <= value <= 170.0:
+        return f'{name} must be in [1, 170], got {value}'
+    if name == 'depth_noise_coefficient' and not 0.0 <= value <= 0.05:
+        return f'depth_noise_coefficient must be in [0, 0.05], got {value}'
+    if name == 'rgbd_min_range_m' and not 0.0 <= value < 10.0:
+        return f'rgbd_min_range_m must be in [0, 10) m, got {value}'
+    if name == 'rgbd_max_range_m' and not 0.0 < value <= 50.0:
+        return f'rgbd_max_range_m must be in (0, 50] m, got {value}'
+    if name == 'initial_joint_positions':
+        if len(value) != len(JOINT_NAMES):
+            return f'initial_joint_positions needs {len(JOINT_NAMES)} values, got {len(value)}'
+        if not all(math.isfinite(v) for v in value):
+            return f'initial_joint_positions must be finite, got {list(value)}'
+    if name == 'render_backend' and value not in ('auto', 'egl', 'osmesa'):
+        return f'render_backend must be auto, egl or osmesa, got {value!r}'
+    if name == 'ground_truth_rate_hz' and not 0.0 < value <= 100.0:
+        return f'ground_truth_rate_hz must be in (0, 100], got {value}'
     if name == 'clock_rate_hz' and not 0.0 < value <= 1000.0:
         return f'clock_rate_hz must be in (0, 1000], got {value}'
-    if name == 'joint_positions':
-        if len(value) != len(JOINT_NAMES):
-            return f'joint_positions needs {len(JOINT_NAMES)} values, got {len(value)}'
-        for joint, q in zip(JOINT_NAMES, value):
-            lo, hi = JOINT_LIMITS[joint]
-            if not (math.isfinite(q) and lo <= q <= hi):
-                return f'joint_positions: {joint}={q} outside [{lo}, {hi}] rad'
     return None
 
 
-def _stamp(t: float) -> Any:
+def check_parameters(values: dict[str, Any]) -> str | None:
+    """What is wrong with the parameters taken together, or None."""
+    if values['rgbd_min_range_m'] >= values['rgbd_max_range_m']:
+        return 'rgbd_min_range_m must be < rgbd_max_range_m'
+    return None
+
+
+def stamp_msg(t: float) -> Any:
+    """builtin_interfaces/Time of t [s]."""
     sec = math.floor(t)
     return TimeMsg(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
@@ -84,15 +160,86 @@ def _float_seq(values: Any) -> Any:
     return np.asarray(values, dtype=np.float64)
 
 
-class SimNode(Node):
-    """Placeholder simulator: synthetic stereo images, camera info, joints, tf and /clock."""
+def _fill_pose(pose: Any, position: Any, quaternion: Any) -> None:
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
+    (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+     pose.orientation.w) = (float(v) for v in quaternion)
 
-    def __init__(self) -> None:
-        super().__init__('sim')
+
+def object_markers(objects: list[Any], stamp: Any, frame_id: str = 'base_link') -> Any:
+    """MarkerArray of scene objects: shape (ns objects), cylinder axes (ns cylinder_axes, arrows
+    from the bottom to the top face's centre), names with dimensions (ns labels)."""
+    markers = [Marker(action=Marker.DELETEALL, ns='')]
+    markers[0].header.frame_id = frame_id
+    markers[0].header.stamp = stamp
+    shape_type = {'cylinder': Marker.CYLINDER, 'box': Marker.CUBE, 'sphere': Marker.SPHERE}
+    for obj in objects:
+        m = Marker(ns='objects', id=obj.id, type=shape_type[obj.shape], action=Marker.ADD)
+        m.header.frame_id, m.header.stamp = frame_id, stamp
+        _fill_pose(m.pose, obj.position, obj.orientation)
+        m.scale.x, m.scale.y, m.scale.z = (float(v) for v in obj.size)
+        m.color.r, m.color.g, m.color.b, m.color.a = (float(v) for v in obj.color)
+        m.text = obj.name
+        markers.append(m)
+        label = Marker(ns='labels', id=obj.id, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD)
+        label.header.frame_id, label.header.stamp = frame_id, stamp
+        _fill_pose(label.pose, np.add(obj.position, (0.0, 0.0, 0.5 * obj.size[2] + 0.03)),
+                   (0.0, 0.0, 0.0, 1.0))
+        label.scale.z = 0.025
+        label.color.r = label.color.g = label.color.b = label.color.a = 1.0
+        if obj.is_cylinder:
+            label.text = (f'{obj.name} r={obj.radius:.3f} h={obj.height:.3f}'
+                          + (' lid' if obj.lid else ''))
+            axis = Marker(ns='cylinder_axes', id=obj.id, type=Marker.ARROW, action=Marker.ADD)
+            axis.header.frame_id, axis.header.stamp = frame_id, stamp
+            axis.pose.orientation.w = 1.0
+            c, a = np.asarray(obj.position), np.asarray(obj.axis)
+            axis.points = [Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+                           for p in (c - 0.5 * obj.height * a, c + 0.5 * obj.height * a)]
+            axis.scale.x, axis.scale.y, axis.scale.z = 0.004, 0.01, 0.015
+            axis.color.r, axis.color.g, axis.color.b, axis.color.a = 1.0, 1.0, 0.0, 1.0
+            markers.append(axis)
+        else:
+            label.text = f'{obj.name} ' + 'x'.join(f'{v:.3f}' for v in obj.size)
+        markers.append(label)
+    return MarkerArray(markers=markers)
+
+
+def box_corners(center: Any, size: Any, quaternion: Any) -> np.ndarray:
+    """8 x 3 corners of a box (centre, full size, orientation (x, y, z, w))."""
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+    local = 0.5 * signs * np.asarray(size, float)
+    return local @ rotation_matrix(quaternion).T + np.asarray(center, float)
+
+
+def image_box(k: np.ndarray, camera_pose: np.ndarray, corners: np.ndarray, width: int,
+              height: int) -> tuple[float, float, float, float] | None:
+    """(u0, v0, u1, v1) [px] of the corners' projection clipped to the image, or None when the
+    box is not in view (behind the camera or entirely outside the image)."""
+    uv = project(k, camera_pose, corners)
+    if np.isnan(uv).any():
+        cam = (corners - camera_pose[:3, 3]) @ camera_pose[:3, :3]
+        if (cam[:, 2] <= 0.05).all():
+            return None
+        uv = uv[~np.isnan(uv).any(axis=1)]   # partly behind: bound the visible corners
+    u0, v0 = np.min(uv, axis=0)
+    u1, v1 = np.max(uv, axis=0)
+    u0, u1 = max(u0, -0.5), min(u1, width - 0.5)
+    v0, v1 = max(v0, -0.5), min(v1, height - 0.5)
+    if u0 >= u1 or v0 >= v1:
+        return None
+    return float(u0), float(v0), float(u1), float(v1)
+
+
+class SimNode(Node):
+    """The simulated Vizzy head: physics, cameras, RGB-D, joints, tf, /clock, ground truth."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        """kwargs go to Node (context, parameter_overrides, cli_args, ...)."""
+        super().__init__('sim', **kwargs)
         p = declare_parameters(self, PARAMETERS, check_parameter, read_only=READ_ONLY,
-                               on_change=self._on_parameters_changed)
-        self._width, self._height = int(p['width']), int(p['height'])
-        self._joints = [float(q) for q in p['joint_positions']]
+                               check_all=check_parameters, on_change=self._on_parameters_changed)
+        self._p = p
         self._publish_clock = bool(p['publish_clock'])
         # Added after declare_parameters' callback, so it runs first (see there).
         self.add_on_set_parameters_callback(self._refuse_sim_time)
@@ -101,42 +248,100 @@ class SimNode(Node):
             self.get_logger().info('the sim is the /clock source: running on wall time '
                                    '(use_sim_time set to false)')
             self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, False)])
-        self._scene = SyntheticStereoScene(self._width, self._height)
-        k = camera_matrix(self._width, self._height, float(p['horizontal_fov_deg']))
-        self._info = {'left': self._camera_info(k, 0.0, 'left_camera_optical_frame'),
-                      'right': self._camera_info(k, float(p['baseline_m']),
-                                                 'right_camera_optical_frame')}
-        self._t0 = time.monotonic()
+        log = self.get_logger()
 
-        self._image_pubs = {eye: self.create_publisher(
-            Image, f'/vizzy/{eye}/image_raw', qos_profile_sensor_data)
-            for eye in ('left', 'right')}
-        self._info_pubs = {eye: self.create_publisher(
-            CameraInfo, f'/vizzy/{eye}/camera_info', qos_profile_sensor_data)
-            for eye in ('left', 'right')}
+        scene_kwargs = ({'count': int(p['pedestrian_count'])} if p['scene'] == 'pedestrians'
+                        else {})
+        self._scene = build_scene(p['scene'], int(p['seed']), **scene_kwargs)
+        eye = CameraSpec(int(p['width']), int(p['height']), float(p['horizontal_fov_deg']))
+        rgbd = CameraSpec(int(p['rgbd_width']), int(p['rgbd_height']),
+                          float(p['rgbd_horizontal_fov_deg']))
+        initial = dict(zip(JOINT_NAMES, (float(v) for v in p['initial_joint_positions'])))
+        self._sim = HeadSimulation(self._scene, initial, eye, rgbd)
+        for note in self._sim.set_targets(initial):
+            log.warning(f'initial_joint_positions: {note}')
+        self._model = self._sim.model
+        self._render_data = mujoco.MjData(self._model)
+        self._backend = select_backend(p['render_backend'])   # fails here, naming the package
+        self._eye, self._rgbd = eye, rgbd
+        self._cam_ids = {e: mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA,
+                                              f'{e}_camera') for e in EYES}
+        self._rgbd_cam = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, 'rgbd_camera')
+        self._k_eye = camera_matrix(eye.width, eye.height, eye.hfov_deg)
+        self._k_rgbd = camera_matrix(rgbd.width, rgbd.height, rgbd.hfov_deg)
+        self._info = {'left': self._camera_info(self._k_eye, eye, 0.0, CAMERA_FRAMES['left']),
+                      'right': self._camera_info(self._k_eye, eye, BASELINE,
+                                                 CAMERA_FRAMES['right']),
+                      'rgbd': self._camera_info(self._k_rgbd, rgbd, 0.0, RGBD_FRAME)}
+        self._projector = DepthProjector(self._k_rgbd, rgbd.width, rgbd.height)
+        self._noise_rng = np.random.default_rng(np.random.SeedSequence([int(p['seed']), 99]))
+        self._last_tf_ns = -1
+        self._publish_lock = threading.Lock()   # joints and tf go out from two threads
+        self._warned: dict[str, float] = {}
+        self._stop = threading.Event()
+        self._render_thread: threading.Thread | None = None
+
+        sensor = qos_profile_sensor_data
+        self._image_pubs = {e: self.create_publisher(Image, f'/vizzy/{e}/image_raw', sensor)
+                            for e in EYES}
+        self._info_pubs = {e: self.create_publisher(CameraInfo, f'/vizzy/{e}/camera_info', sensor)
+                           for e in EYES}
+        self._rgbd_image_pub = self.create_publisher(Image, '/vizzy/rgbd/image_raw', sensor)
+        self._rgbd_depth_pub = self.create_publisher(Image, '/vizzy/rgbd/depth/image_raw', sensor)
+        self._rgbd_points_pub = self.create_publisher(message('sensor_msgs/msg/PointCloud2'),
+                                                      '/vizzy/rgbd/points', sensor)
+        self._rgbd_info_pub = self.create_publisher(CameraInfo, '/vizzy/rgbd/camera_info', sensor)
         self._joint_pub = self.create_publisher(JointState, '/joint_states', 10)
         self._tf_pub = self.create_publisher(TFMessage, '/tf', 100)
         self._tf_static_pub = self.create_publisher(TFMessage, '/tf_static', qos_profile_latched)
         self._clock_pub = (self.create_publisher(Clock, '/clock', 10)
                            if self._publish_clock else None)
+        self._gt_objects_pub = self.create_publisher(MarkerArray, '/sim/ground_truth/objects',
+                                                     qos_profile_latched)
+        self._crowd = self._scene.crowd is not None
+        if self._crowd:
+            self._gt_people_pub = self.create_publisher(
+                MarkerArray, '/sim/ground_truth/pedestrians', 10)
+            self._gt_boxes_pubs = {e: self.create_publisher(
+                TrackArray, f'/sim/ground_truth/{e}/pedestrians', 10) for e in EYES}
+        self.create_subscription(JointState, COMMAND_TOPIC, guarded(
+            self, f'{COMMAND_TOPIC}: failed on a command', self._on_joint_command), 10)
 
+        now = self._now(self._sim.time)
+        world = Transform('world', 'base_link', (0.0, 0.0, WAIST_HEIGHT), (0.0, 0.0, 0.0, 1.0))
         self._tf_static_pub.publish(TFMessage(transforms=self._transforms(
-            static_transforms(), self._now())))
-        self._timer = self.create_timer(1.0 / float(p['rate_hz']), self._on_tick)
+            [world] + static_transforms(), now)))
+        self._publish_ground_truth()
+
+        self._sim.start()
+        self._start_rendering()
+        self._joint_timer = self.create_timer(1.0 / float(p['joint_state_rate_hz']), guarded(
+            self, 'joint state publishing failed', self._on_joint_tick))
+        self._gt_timer = self.create_timer(1.0 / float(p['ground_truth_rate_hz']), guarded(
+            self, 'ground truth publishing failed', self._publish_ground_truth))
         if self._clock_pub is not None:
             self._clock_timer = self.create_timer(1.0 / float(p['clock_rate_hz']), self._on_clock)
-        self.get_logger().info(
-            f'placeholder head: synthetic {self._width}x{self._height} rgb8 stereo on '
-            f'/vizzy/{{left,right}}/image_raw at {p["rate_hz"]} Hz, camera_info, /joint_states, '
-            f'/tf, /tf_static' + (', /clock (sim time from 0)' if self._publish_clock else ''))
+        log.info(
+            f'scene {p["scene"]} (seed {p["seed"]}): {self._scene.description}; '
+            f'{eye.width}x{eye.height} stereo at {p["rate_hz"]} Hz, RGB-D at {p["rgbd_rate_hz"]} '
+            f'Hz, physics at {1.0 / self._sim.dt:.0f} Hz, rendering with '
+            f'{self._backend} in its own thread; joint targets on {COMMAND_TOPIC}')
 
-    def _now(self) -> Any:
+    # ------------------------------------------------------------------ helpers
+    def _now(self, t: float) -> Any:
         if self._publish_clock:
-            return _stamp(time.monotonic() - self._t0)
+            return stamp_msg(t)
         return self.get_clock().now().to_msg()
 
-    def _camera_info(self, k: np.ndarray, baseline_m: float, frame_id: str) -> Any:
-        info = CameraInfo(width=self._width, height=self._height, distortion_model='plumb_bob')
+    def _warn_throttled(self, key: str, text: str, period: float = 2.0) -> None:
+        now = time.monotonic()
+        if now - self._warned.get(key, -math.inf) >= period:
+            self._warned[key] = now
+            self.get_logger().warning(text)
+
+    def _camera_info(self, k: np.ndarray, spec: CameraSpec, baseline_m: float,
+                     frame_id: str) -> Any:
+        info = CameraInfo(width=spec.width, height=spec.height, distortion_model='plumb_bob')
         info.header.frame_id = frame_id
         info.d = _float_seq([0.0] * 5)
         info.k = np.ascontiguousarray(k, dtype=np.float64).reshape(9)
@@ -156,27 +361,199 @@ class SimNode(Node):
             out.append(msg)
         return out
 
-    def _on_clock(self) -> None:
-        self._clock_pub.publish(Clock(clock=self._now()))
+    def _publish_joints(self, t: float, position: np.ndarray, velocity: np.ndarray,
+                        effort: np.ndarray) -> None:
+        """/joint_states and /tf at sim time t, unless already published for that instant."""
+        ns = int(round(t * 1e9))
+        with self._publish_lock:
+            if ns <= self._last_tf_ns:
+                return
+            self._last_tf_ns = ns
+            self._send_joints(t, position, velocity, effort)
 
-    def _on_tick(self) -> None:
-        stamp = self._now()
-        t = stamp.sec + stamp.nanosec * 1e-9
-        for eye in ('left', 'right'):
-            header = Header(stamp=stamp, frame_id=f'{eye}_camera_optical_frame')
-            image = numpy_to_image(self._scene.render(t, eye), 'rgb8', header)
-            self._image_pubs[eye].publish(image)
-            info = self._info[eye]
-            info.header.stamp = stamp
-            self._info_pubs[eye].publish(info)
+    def _send_joints(self, t: float, position: np.ndarray, velocity: np.ndarray,
+                     effort: np.ndarray) -> None:
+        stamp = self._now(t)
         joints = JointState(name=list(JOINT_NAMES))
         joints.header.stamp = stamp
-        joints.position = _float_seq(self._joints)
-        joints.velocity = _float_seq([0.0] * len(JOINT_NAMES))
+        joints.position = _float_seq(position)
+        joints.velocity = _float_seq(velocity)
+        joints.effort = _float_seq(effort)
         self._joint_pub.publish(joints)
         self._tf_pub.publish(TFMessage(transforms=self._transforms(
-            joint_transforms(self._joints), stamp)))
+            joint_transforms(position.tolist()), stamp)))
 
+    def _snapshot(self) -> tuple[float, np.ndarray]:
+        """Copy the physics state for rendering, pose the walkers; (sim time, joint positions)."""
+        d = self._render_data
+        t = self._sim.snapshot_into(d)
+        self._scene.update(self._model, d, t)
+        mujoco.mj_forward(self._model, d)
+        q = d.qpos[self._sim.qpos_adr].copy()
+        self._publish_joints(t, q, d.qvel[self._sim.dof_adr].copy(),
+                             d.actuator_force[self._sim.act_ids].copy())
+        return t, q
+
+    # ------------------------------------------------------------------ timers
+    def _on_clock(self) -> None:
+        self._clock_pub.publish(Clock(clock=self._now(self._sim.time)))
+
+    def _on_joint_tick(self) -> None:
+        s = self._sim.sample()
+        self._publish_joints(s.time, s.position, s.velocity, s.effort)
+
+    def _start_rendering(self) -> None:
+        """The render thread: its own GL context, paced by rate_hz and rgbd_rate_hz, so the
+        executor stays free for joint commands, /joint_states, /tf and /clock."""
+        ready = threading.Event()
+        failure: list[BaseException] = []
+
+        def run() -> None:
+            try:
+                renderer = CameraRenderer(self._model, max(self._eye.width, self._rgbd.width),
+                                          max(self._eye.height, self._rgbd.height),
+                                          self._backend)
+            except BaseException as exc:  # reported by the constructor, in its thread
+                failure.append(exc)
+                ready.set()
+                return
+            ready.set()
+            try:
+                self._render_loop(renderer)
+            finally:
+                renderer.close()
+
+        self._render_thread = threading.Thread(target=run, name='vizzy_render', daemon=True)
+        self._render_thread.start()
+        ready.wait()
+        if failure:
+            self._sim.stop()
+            raise failure[0]
+
+    def _render_loop(self, renderer: CameraRenderer) -> None:
+        self._renderer = renderer
+        due = {'stereo': time.monotonic(), 'rgbd': time.monotonic()}
+        work = {'stereo': self._on_render, 'rgbd': self._on_rgbd}
+        last_error = {'stereo': -math.inf, 'rgbd': -math.inf}
+        while not self._stop.is_set():
+            rates = {'stereo': float(self._p['rate_hz']), 'rgbd': float(self._p['rgbd_rate_hz'])}
+            now = time.monotonic()
+            for key in ('stereo', 'rgbd'):
+                if rates[key] <= 0.0:
+                    due[key] = now + 0.1
+                    continue
+                if now >= due[key]:
+                    period = 1.0 / rates[key]
+                    # keep the phase; when late by more than a period, start again from now
+                    due[key] = due[key] + period if now - due[key] < period else now + period
+                    try:
+                        work[key]()
+                    except Exception as exc:  # one bad frame never stops the rendering
+                        if now - last_error[key] > 5.0:
+                            last_error[key] = now
+                            self.get_logger().error(
+                                f'{key} rendering failed: {type(exc).__name__}: {exc}')
+            wait = min(due.values()) - time.monotonic()
+            if wait > 0:
+                self._stop.wait(wait)
+
+    def _on_render(self) -> None:
+        t, q = self._snapshot()
+        stamp = self._now(t)
+        for e in EYES:
+            rgb, _ = self._renderer.render(self._render_data, self._cam_ids[e],
+                                           width=self._eye.width, height=self._eye.height)
+            header = Header(stamp=stamp, frame_id=CAMERA_FRAMES[e])
+            self._image_pubs[e].publish(numpy_to_image(rgb, 'rgb8', header))
+            info = self._info[e]
+            info.header.stamp = stamp
+            self._info_pubs[e].publish(info)
+        if self._crowd:
+            self._publish_pedestrians(q, stamp)
+
+    def _on_rgbd(self) -> None:
+        t, _ = self._snapshot()
+        stamp = self._now(t)
+        rgb, depth = self._renderer.render(self._render_data, self._rgbd_cam, depth=True,
+                                           width=self._rgbd.width, height=self._rgbd.height)
+        coeff = float(self._p['depth_noise_coefficient'])
+        z = noisy_depth(depth, self._noise_rng if coeff > 0 else None, coeff,
+                        float(self._p['rgbd_min_range_m']), float(self._p['rgbd_max_range_m']))
+        header = Header(stamp=stamp, frame_id=RGBD_FRAME)
+        self._rgbd_image_pub.publish(numpy_to_image(rgb, 'rgb8', header))
+        self._rgbd_depth_pub.publish(numpy_to_image(z, '32FC1', header))
+        self._rgbd_points_pub.publish(array_to_pointcloud2(self._projector.cloud(z, rgb), header,
+                                                           is_dense=False))
+        info = self._info['rgbd']
+        info.header.stamp = stamp
+        self._rgbd_info_pub.publish(info)
+
+    def _publish_ground_truth(self) -> None:
+        self._gt_objects_pub.publish(object_markers(self._scene.objects,
+                                                    self._now(self._sim.time)))
+
+    def _publish_pedestrians(self, q: np.ndarray, stamp: Any) -> None:
+        boxes = self._scene.moving_ground_truth(self._model, self._render_data)
+        markers = [Marker(action=Marker.DELETEALL)]
+        markers[0].header.frame_id, markers[0].header.stamp = 'base_link', stamp
+        for box in boxes:
+            m = Marker(ns='pedestrians', id=box['id'], type=Marker.CUBE, action=Marker.ADD,
+                       text=box['label'])
+            m.header.frame_id, m.header.stamp = 'base_link', stamp
+            _fill_pose(m.pose, box['center'], box['orientation'])
+            m.scale.x, m.scale.y, m.scale.z = box['size']
+            m.color.r, m.color.g, m.color.b, m.color.a = 0.2, 0.8, 0.2, 0.5
+            markers.append(m)
+        self._gt_people_pub.publish(MarkerArray(markers=markers))
+        poses = frames_in_base(q.tolist())
+        for e in EYES:
+            tracks = []
+            for box in boxes:
+                corners = box.get('corners')
+                if corners is None:
+                    corners = box_corners(box['center'], box['size'], box['orientation'])
+                bb = image_box(self._k_eye, poses[CAMERA_FRAMES[e]], corners,
+                               self._eye.width, self._eye.height)
+                if bb is None:
+                    continue
+                u0, v0, u1, v1 = bb
+                tracks.append(Track(id=box['id'], label=box['label'], center_u=(u0 + u1) / 2,
+                                    center_v=(v0 + v1) / 2, width=u1 - u0, height=v1 - v0,
+                                    scale=1.0))
+            msg = TrackArray(tracks=tracks)
+            msg.header.stamp, msg.header.frame_id = stamp, CAMERA_FRAMES[e]
+            self._gt_boxes_pubs[e].publish(msg)
+
+    # ------------------------------------------------------------------ commands
+    def _on_joint_command(self, msg: Any) -> None:
+        names = list(msg.name)
+        positions = [float(v) for v in msg.position]
+        velocities = [float(v) for v in msg.velocity]
+        log = self.get_logger()
+        if not names:
+            log.error(f'{COMMAND_TOPIC}: rejected: no joint names')
+            return
+        if len(names) != len(positions):
+            log.error(f'{COMMAND_TOPIC}: rejected: {len(names)} names but {len(positions)} '
+                      'positions')
+            return
+        unknown = [n for n in names if n not in JOINT_LIMITS]
+        if unknown:
+            log.error(f'{COMMAND_TOPIC}: rejected: unknown joints {unknown}; known: '
+                      f'{", ".join(JOINT_NAMES)}')
+            return
+        if len(set(names)) != len(names):
+            log.error(f'{COMMAND_TOPIC}: rejected: repeated joint names in {names}')
+            return
+        bad = [f'{n}={v}' for n, v in zip(names, positions) if not math.isfinite(v)]
+        if bad:
+            log.error(f'{COMMAND_TOPIC}: rejected: non-finite targets {bad}')
+            return
+        speeds = dict(zip(names, velocities)) if len(velocities) == len(names) else None
+        for note in self._sim.set_targets(dict(zip(names, positions)), speeds):
+            self._warn_throttled(note.split()[0], f'{COMMAND_TOPIC}: {note}')
+
+    # ------------------------------------------------------------------ parameters, shutdown
     def _refuse_sim_time(self, params: list[Any]) -> Any:
         for param in params:
             if param.name == 'use_sim_time' and param.value and self._publish_clock:
@@ -185,14 +562,40 @@ class SimNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        if 'rate_hz' in changed:
-            self._timer = replace_timer(self, self._timer, 1.0 / float(changed['rate_hz']),
-                                        self._on_tick)
-        if 'joint_positions' in changed:
-            self._joints = [float(q) for q in changed['joint_positions']]
+        if 'joint_state_rate_hz' in changed:
+            self._joint_timer = replace_timer(self, self._joint_timer,
+                                              1.0 / float(changed['joint_state_rate_hz']),
+                                              guarded(self, 'joint state publishing failed',
+                                                      self._on_joint_tick))
+        if 'ground_truth_rate_hz' in changed:
+            self._gt_timer = replace_timer(self, self._gt_timer,
+                                           1.0 / float(changed['ground_truth_rate_hz']),
+                                           guarded(self, 'ground truth publishing failed',
+                                                   self._publish_ground_truth))
+
+    def destroy_node(self) -> Any:
+        stop = getattr(self, '_stop', None)
+        if stop is not None:
+            stop.set()
+        thread = getattr(self, '_render_thread', None)
+        if thread is not None:
+            thread.join(timeout=10.0)
+        sim = getattr(self, '_sim', None)
+        if sim is not None:
+            sim.stop()
+        return super().destroy_node()
 
 
-main = main_for(SimNode)
+_main = main_for(SimNode)
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the sim until Ctrl-C; a missing renderer or scene module ends it with one clear line."""
+    try:
+        _main(args)
+    except (RendererUnavailable, SceneUnavailable) as exc:
+        print(f'[sim] cannot start: {exc}', file=sys.stderr)
+        sys.exit(1)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,223 @@
+"""The sim node on the bundled runtime: what it publishes and how it takes joint commands.
+
+A listener node in the test process subscribes to the sim's topics; nothing asserts on
+wall-clock time (every test waits for a condition). Images are rendered at reduced resolution.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from vizzy_runtime.convert import image_to_numpy, pointcloud2_to_array
+from vizzy_runtime.ros import message, qos_profile_latched, qos_profile_sensor_data
+from vizzy_runtime.rclpy_compat.context import Context
+from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
+from vizzy_runtime.rclpy_compat.node import Node
+from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.testing import wait_until
+from vizzy_sim_bridge.core import render as render_mod
+from vizzy_sim_bridge.core.camera import camera_matrix
+from vizzy_sim_bridge.core.kinematics import (
+    BASELINE, JOINT_LIMITS, JOINT_NAMES, frames_in_base, static_transforms)
+from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
+
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
+Image = message('sensor_msgs/msg/Image')
+JointState = message('sensor_msgs/msg/JointState')
+MarkerArray = message('visualization_msgs/msg/MarkerArray')
+PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+TFMessage = message('tf2_msgs/msg/TFMessage')
+Clock = message('rosgraph_msgs/msg/Clock')
+
+TIMEOUT = 30.0
+W, H = 160, 120
+OVERRIDES = [Parameter('width', value=W), Parameter('height', value=H),
+             Parameter('rgbd_width', value=W), Parameter('rgbd_height', value=H),
+             Parameter('rate_hz', value=20.0), Parameter('rgbd_rate_hz', value=10.0),
+             Parameter('joint_state_rate_hz', value=100.0)]
+
+
+class Listener(Node):
+    """Keeps the last message of each sim topic and sends joint commands."""
+
+    TOPICS = {
+        '/vizzy/left/image_raw': (Image, qos_profile_sensor_data),
+        '/vizzy/right/image_raw': (Image, qos_profile_sensor_data),
+        '/vizzy/left/camera_info': (CameraInfo, qos_profile_sensor_data),
+        '/vizzy/right/camera_info': (CameraInfo, qos_profile_sensor_data),
+        '/vizzy/rgbd/image_raw': (Image, qos_profile_sensor_data),
+        '/vizzy/rgbd/depth/image_raw': (Image, qos_profile_sensor_data),
+        '/vizzy/rgbd/points': (PointCloud2, qos_profile_sensor_data),
+        '/vizzy/rgbd/camera_info': (CameraInfo, qos_profile_sensor_data),
+        '/joint_states': (JointState, 10),
+        '/tf': (TFMessage, 100),
+        '/tf_static': (TFMessage, qos_profile_latched),
+        '/clock': (Clock, 10),
+        '/sim/ground_truth/objects': (MarkerArray, qos_profile_latched),
+    }
+
+    def __init__(self, context: Context) -> None:
+        super().__init__('sim_listener', context=context, start_parameter_services=False)
+        self.last: dict[str, Any] = {}
+        self.stamps: dict[str, list[int]] = {}
+        for topic, (kind, qos) in self.TOPICS.items():
+            self.create_subscription(kind, topic, self._keep(topic), qos)
+        self.commands = self.create_publisher(JointState, '/vizzy/joint_commands', 10)
+
+    def _keep(self, topic: str) -> Any:
+        def keep(msg: Any) -> None:
+            self.last[topic] = msg
+            stamp = getattr(getattr(msg, 'header', None), 'stamp', None)
+            if stamp is not None:
+                self.stamps.setdefault(topic, []).append(stamp.sec * 10 ** 9 + stamp.nanosec)
+        return keep
+
+    def command(self, **targets: float) -> None:
+        self.commands.publish(JointState(name=list(targets),
+                                         position=[float(v) for v in targets.values()]))
+
+    def joint(self, name: str) -> float:
+        js = self.last['/joint_states']
+        return float(js.position[list(js.name).index(name)])
+
+
+@pytest.fixture(scope='module')
+def running():
+    try:
+        render_mod.select_backend()
+    except render_mod.RendererUnavailable as exc:
+        pytest.skip(str(exc))
+    ctx = Context()
+    ctx.init(['test'])
+    sim = SimNode(context=ctx, parameter_overrides=OVERRIDES)
+    listener = Listener(ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(sim)
+    executor.add_node(listener)
+    assert wait_until(lambda: set(Listener.TOPICS) <= set(listener.last), TIMEOUT, spin=executor), (
+        f'never received {set(Listener.TOPICS) - set(listener.last)}')
+    try:
+        yield sim, listener, executor
+    finally:
+        executor.remove_node(listener)
+        executor.remove_node(sim)
+        listener.destroy_node()
+        sim.destroy_node()
+        ctx.try_shutdown()
+
+
+def test_images_and_camera_info(running) -> None:
+    sim, listener, _ = running
+    k = camera_matrix(W, H, 85.4)
+    for side in ('left', 'right'):
+        img = listener.last[f'/vizzy/{side}/image_raw']
+        assert (img.width, img.height, img.encoding) == (W, H, 'rgb8')
+        assert img.header.frame_id == f'{side}_camera_optical_frame'
+        assert image_to_numpy(img).std() > 5.0
+        info = listener.last[f'/vizzy/{side}/camera_info']
+        assert info.header.frame_id == img.header.frame_id
+        assert (info.width, info.height, info.distortion_model) == (W, H, 'plumb_bob')
+        np.testing.assert_allclose(np.reshape(info.k, (3, 3)), k)
+        np.testing.assert_array_equal(info.d, np.zeros(5))
+        np.testing.assert_array_equal(np.reshape(info.r, (3, 3)), np.eye(3))
+        p = np.reshape(info.p, (3, 4))
+        np.testing.assert_allclose(p[:, :3], k)
+        tx = -k[0, 0] * BASELINE if side == 'right' else 0.0
+        assert p[0, 3] == pytest.approx(tx)
+    # each stereo pair shares one stamp
+    left = set(listener.stamps['/vizzy/left/image_raw'])
+    assert left & set(listener.stamps['/vizzy/right/image_raw'])
+
+
+def test_rgbd_cloud_depth_and_info(running) -> None:
+    _, listener, _ = running
+    cloud = listener.last['/vizzy/rgbd/points']
+    assert cloud.header.frame_id == 'rgbd_camera_optical_frame'
+    assert (cloud.height, cloud.width) == (H, W) and not cloud.is_dense
+    assert [f.name for f in cloud.fields] == ['x', 'y', 'z', 'rgb']
+    pts = pointcloud2_to_array(cloud)
+    valid = np.isfinite(pts['z'])
+    assert valid.mean() > 0.5
+    assert 0.5 <= np.nanmin(pts['z']) and np.nanmax(pts['z']) <= 3.5
+    depth = listener.last['/vizzy/rgbd/depth/image_raw']
+    assert depth.encoding == '32FC1' and depth.header.frame_id == cloud.header.frame_id
+    info = listener.last['/vizzy/rgbd/camera_info']
+    np.testing.assert_allclose(np.reshape(info.k, (3, 3)), camera_matrix(W, H, 58.0))
+    assert listener.last['/vizzy/rgbd/image_raw'].encoding == 'rgb8'
+
+
+def test_tf_static_and_tf_cover_the_whole_head(running) -> None:
+    _, listener, spin = running
+    static = {t.child_frame_id: t for t in listener.last['/tf_static'].transforms}
+    assert {t.child for t in static_transforms()} | {'base_link'} == set(static)
+    ego = static['ego'].transform.translation
+    assert (ego.x, ego.y, ego.z) == pytest.approx((0.0, 0.0, 0.370))
+    assert static['base_link'].header.frame_id == 'world'
+    assert wait_until(lambda: {t.child_frame_id for t in listener.last['/tf'].transforms} == {
+        'neck_pan_link', 'neck_tilt_link', 'eyes_tilt_link', 'left_eye_link', 'right_eye_link'},
+        TIMEOUT, spin=spin)
+    js = listener.last['/joint_states']
+    assert list(js.name) == list(JOINT_NAMES) and len(js.position) == 5
+    clock = listener.last['/clock'].clock
+    assert clock.sec * 10 ** 9 + clock.nanosec > 0
+
+
+def test_ground_truth_objects_have_dimensions_and_axes(running) -> None:
+    sim, listener, _ = running
+    markers = listener.last['/sim/ground_truth/objects'].markers
+    shapes = [m for m in markers if m.ns == 'objects']
+    axes = [m for m in markers if m.ns == 'cylinder_axes']
+    assert len(shapes) == len(sim._scene.objects)
+    assert len(axes) == sum(o.is_cylinder for o in sim._scene.objects) >= 5
+    for m in shapes:
+        assert m.header.frame_id == 'base_link' and min(m.scale.x, m.scale.y, m.scale.z) > 0
+
+
+def _wait_joint(listener: Any, spin: Any, name: str, value: float) -> bool:
+    return wait_until(lambda: abs(listener.joint(name) - value) < 1e-3, TIMEOUT, spin=spin)
+
+
+def test_joint_commands_move_the_joints_and_are_clamped(running) -> None:
+    sim, listener, spin = running
+    listener.command(l_eye_joint=0.2, neck_pan_joint=-0.1)
+    assert _wait_joint(listener, spin, 'l_eye_joint', 0.2)
+    assert _wait_joint(listener, spin, 'neck_pan_joint', -0.1)
+    # the tf of the moved joint follows MuJoCo's joint position
+    tf = {t.child_frame_id: t for t in listener.last['/tf'].transforms}
+    q = tf['left_eye_link'].transform.rotation
+    assert 2 * math.atan2(q.z, q.w) == pytest.approx(0.2, abs=2e-3)
+    # beyond the limit: clamped to it
+    listener.command(r_eye_joint=5.0)
+    assert _wait_joint(listener, spin, 'r_eye_joint', JOINT_LIMITS['r_eye_joint'][1])
+    assert sim._sim.targets()['r_eye_joint'] == JOINT_LIMITS['r_eye_joint'][1]
+
+
+def test_bad_commands_are_rejected_and_the_node_keeps_going(running) -> None:
+    sim, listener, spin = running
+    before = sim._sim.targets()
+    listener.command(elbow_joint=0.3, l_eye_joint=-0.2)          # unknown name: whole message
+    listener.commands.publish(JointState(name=['l_eye_joint'], position=[math.nan]))
+    listener.commands.publish(JointState(name=['l_eye_joint', 'r_eye_joint'], position=[0.1]))
+    listener.command(neck_tilt_joint=0.1)                         # a good one after the bad
+    assert wait_until(lambda: sim._sim.targets()['neck_tilt_joint'] == 0.1, TIMEOUT, spin=spin)
+    after = sim._sim.targets()
+    assert after['l_eye_joint'] == before['l_eye_joint']
+    n = len(listener.stamps['/vizzy/left/image_raw'])
+    assert wait_until(lambda: len(listener.stamps['/vizzy/left/image_raw']) > n + 2, TIMEOUT,
+                      spin=spin)
+
+
+def test_image_box_projects_and_clips() -> None:
+    k = camera_matrix(640, 480, 85.4)
+    cam = frames_in_base([0.0] * 5)['left_camera_optical_frame']
+    ahead = cam[:3, 3] + 3.0 * cam[:3, 2]
+    box = image_box(k, cam, box_corners(ahead, (0.5, 0.5, 1.7), (0, 0, 0, 1)), 640, 480)
+    u0, v0, u1, v1 = box
+    assert u0 < 319.5 < u1 and v0 < 239.5 < v1
+    assert (v1 - v0) == pytest.approx(k[1, 1] * 1.7 / 2.75, rel=0.15)
+    behind = cam[:3, 3] - 3.0 * cam[:3, 2]
+    assert image_box(k, cam, box_corners(behind, (0.5, 0.5, 1.7), (0, 0, 0, 1)), 640, 480) is None
