@@ -1,6 +1,10 @@
-"""ROS-free algorithms of stereo_ses_node go here.
+"""ROS-free algorithms of stereo_ses_node (thesis chapter 3); numpy/scipy/OpenCV, no ROS imports.
 
-numpy/OpenCV/torch only, fully typed, no ROS imports. Planned modules:
-- stereo: log-polar / Cartesian stereo reconstruction with Unscented Transform covariances.
-- ses: the egocentric Sensory Ego-Sphere memory and bandit gaze selection.
+- geometry: convergent stereo poses, mid-point triangulation (Eq. 3.8).
+- sensors: Cartesian and log-polar (foveation package) sensors as Gaussian RFs (Eqs. 3.6-3.7).
+- ut: Unscented Transform (Eqs. 3.9-3.18), with linearization and Monte Carlo references.
+- stereo: SGBM on each sensor's view -> correspondences -> UT points.
+- ses: the randomized Sensory Ego-Sphere (Eqs. 3.19-3.35), exact fast association.
+- decision: reward statistics and UCB / PI / EI gaze selection (Eqs. 3.36-3.43).
+- linalg3, synthetic: batched 3x3 inverse; synthetic textured-plane stereo pairs.
 """
