@@ -136,3 +136,21 @@ def test_recorder_finalizes_on_signal_without_data(tmp_path: Path, sig: int) -> 
     assert recorder.returncode == 0, err
     reader = BagReader(tmp_path / 'bag')
     assert reader.message_count == 0 and reader.topics == {}
+
+
+def test_recorder_skips_excluded_topics(tmp_path):
+    from vizzy_runtime import dds, msgs
+    from vizzy_runtime.bag import BagReader, Recorder
+    String = msgs.get_message('std_msgs/msg/String')
+    keep = dds.RawWriter('/keep_me', 'std_msgs/msg/String', dds.QoS(transient_local=True, depth=1))
+    drop = dds.RawWriter('/drop_me', 'std_msgs/msg/String', dds.QoS(transient_local=True, depth=1))
+    keep.write(msgs.serialize(String(data='k')))
+    drop.write(msgs.serialize(String(data='d')))
+    recorder = Recorder(tmp_path / 'bag', ['/keep_me', '/drop_me'], exclude=['/drop_me'])
+    import threading
+    thread = threading.Thread(target=recorder.run, kwargs={'handle_signals': False})
+    thread.start()
+    wait_for(lambda: recorder.counts.get('/keep_me', 0) == 1, 20, 'the kept topic')
+    recorder.stop()
+    thread.join(20)
+    assert set(BagReader(tmp_path / 'bag').topics) == {'/keep_me'}

@@ -173,7 +173,7 @@ def _print_counts(counts: dict[str, int]) -> None:
 def cmd_bag_record(ns: argparse.Namespace) -> int:
     from .bag import Recorder, default_bag_name
     topics = None if ns.all or not ns.topics else ns.topics
-    _print_counts(Recorder(ns.output or default_bag_name(), topics,
+    _print_counts(Recorder(ns.output or default_bag_name(), topics, exclude=ns.exclude_topics or (),
                            include_hidden=ns.include_hidden).run(ns.duration))
     return 0
 
@@ -242,6 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument('-o', '--output', help='bag directory to create (default rosbag2_<time>)')
     rec.add_argument('-d', '--duration', type=float, help='seconds (default: until Ctrl-C)')
     rec.add_argument('--include-hidden', action='store_true', help='also hidden topics (_name)')
+    rec.add_argument('--exclude-topics', nargs='+', metavar='TOPIC', help='topics not to record')
     rec.set_defaults(func=cmd_bag_record)
     play = bag.add_parser('play')
     play.add_argument('bag')

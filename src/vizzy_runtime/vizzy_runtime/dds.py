@@ -293,9 +293,19 @@ class RawReader:
         self.topic_name = ros_topic
         self.typename = msgs.normalize_type_name(typename)
         self.qos = qos
-        listener = Listener(on_data_available=lambda _r: on_data(self)) if on_data else None
+        self._on_data = on_data
+        self._early = False  # data (e.g. latched samples) may arrive before DataReader() returns
+        listener = Listener(on_data_available=lambda _r: self._data_available()) if on_data else None
         self._reader = DataReader(participant(), _topic(ros_topic, self.typename),
                                   qos.to_dds(type_hash_user_data(self.typename)), listener=listener)
+        if self._early and on_data:
+            on_data(self)
+
+    def _data_available(self) -> None:
+        if not hasattr(self, '_reader'):
+            self._early = True
+        elif self._on_data is not None:
+            self._on_data(self)
 
     @property
     def entity(self) -> DataReader:

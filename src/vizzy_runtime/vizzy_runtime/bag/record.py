@@ -47,6 +47,7 @@ class Recorder:
         topics: topic names to record; None records every topic that has a publisher
             (hidden ones only with include_hidden). Topics are discovered continuously, so
             publishers that appear later are recorded too.
+        exclude: topics never to record (like ros2 bag record --exclude-topics).
         include_hidden: also record hidden topics (a name component starting with '_').
         discovery_interval: seconds between looks at the DDS graph.
         chunk_size, flush_interval, compression, custom_data: see BagWriter.
@@ -56,7 +57,8 @@ class Recorder:
     """
 
     def __init__(self, output_dir: str | os.PathLike[str], topics: Iterable[str] | None = None,
-                 *, include_hidden: bool = False, discovery_interval: float = 0.5,
+                 *, exclude: Iterable[str] = (), include_hidden: bool = False,
+                 discovery_interval: float = 0.5,
                  chunk_size: int = 1 << 20, flush_interval: float = 1.0,
                  compression: str = 'zstd', custom_data: dict[str, str] | None = None) -> None:
         self.output_dir = Path(output_dir)
@@ -65,6 +67,7 @@ class Recorder:
             raise BagError(f'{self.output_dir}: already exists, not overwriting')
         self.topics = None if topics is None else {t if t.startswith('/') else '/' + t
                                                    for t in topics}
+        self.exclude = {t if t.startswith('/') else '/' + t for t in exclude}
         self.include_hidden = include_hidden
         self.discovery_interval = discovery_interval
         self._writer_args: dict[str, Any] = dict(chunk_size=chunk_size,
@@ -130,6 +133,8 @@ class Recorder:
     # -- discovery -----------------------------------------------------------------------------
 
     def _wanted(self, topic: str) -> bool:
+        if topic in self.exclude:
+            return False
         if self.topics is not None:
             return topic in self.topics
         return self.include_hidden or not is_hidden(topic)
