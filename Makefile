@@ -18,7 +18,7 @@ test: setup
 	$(PY) -m pytest
 
 bench: setup
-	$(PY) bench/transport.py
+	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
 	rm -rf .venv build install log demo_output .pytest_cache
