@@ -24,6 +24,7 @@ setup(
     entry_points={
         'console_scripts': [
             'cylinder_detector = cylinder_detector_node.node:main',
+            'detect_file = cylinder_detector_node.detect_file:main',
         ],
     },
 )

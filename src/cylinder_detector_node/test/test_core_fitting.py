@@ -1,0 +1,71 @@
+"""Cylinder fitting (thesis section 4.3.3): synthetic cylinders recovered; caps break the baseline only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cylinder_detector_node.core.accumulator import TABLE_4_1
+from cylinder_detector_node.core.fitting import FitParams, fit_cylinder, make_directions
+from cylinder_detector_node.core.geometry import normals_and_curvature
+from cylinder_detector_node.core.synthetic import axis_angle_deg, axis_distance, make_cylinder, random_axis
+
+
+@pytest.mark.parametrize('seed', range(8))
+def test_random_pose_cylinders_are_recovered(seed: int) -> None:
+    """Random axis, centre, radius 3-10 cm, height 2-6 radii, noise 1% of r, 900 points:
+    axis within 6 deg, radius within 10%, axis within 0.2 r of the centre, height within 15%."""
+    rng = np.random.default_rng(seed)
+    r = rng.uniform(0.03, 0.1)
+    h = r * rng.uniform(2.0, 6.0)
+    s = make_cylinder(rng, r, h, 900, 0.0, 0.01 * r, axis=random_axis(rng), centre=rng.uniform(-1, 1, 3))
+    c = fit_cylinder(s.points, FitParams(n_directions=2000))
+    assert c is not None
+    assert axis_angle_deg(np.array(c.axis), s.axis) < 6.0
+    assert abs(c.radius - r) < 0.1 * r
+    assert axis_distance(s.centre, np.array(c.centre), np.array(c.axis)) < 0.2 * r
+    assert abs(c.height - h) < 0.15 * h
+    assert c.confidence > 0.8
+
+
+def test_capped_cylinders_break_the_baseline_not_ours() -> None:
+    """Upright cylinders with lids holding 150% of the side's points (Eq. 4.5: 60% outliers)."""
+    base = dict(radius_min=0.1, radius_max=0.5, min_confidence=0.0)
+    rabbani, ours = FitParams(method='rabbani', **base), FitParams(gmm=TABLE_4_1['mild'], **base)
+    d_r, d_o = make_directions(rabbani), make_directions(ours)
+    err_r, err_o = [], []
+    for i in range(10):
+        rng = np.random.default_rng(100 + i)
+        s = make_cylinder(rng, 0.3, rng.uniform(0.8, 2.0), 900, 1.5, centre=rng.uniform(-1, 1, 3))
+        assert s.outlier_fraction == pytest.approx(0.6)
+        err_r.append(axis_angle_deg(np.array(fit_cylinder(s.points, rabbani, d_r).axis), s.axis))
+        err_o.append(axis_angle_deg(np.array(fit_cylinder(s.points, ours, d_o).axis), s.axis))
+    assert np.mean(err_r) > 60.0       # the lids' normals win: the axis lies flat
+    assert np.mean(err_o) < 10.0
+
+
+def test_curvature_of_cylinder_and_plane() -> None:
+    """Side points: normal and c_max orthogonal to the axis; lid points: k_max near 0."""
+    rng = np.random.default_rng(3)
+    s = make_cylinder(rng, 0.05, 0.3, 2000, 1.0)
+    n, c, k = normals_and_curvature(s.points, 15)
+    side = slice(0, 2000)
+    assert np.median(np.abs(n[side] @ s.axis)) < 0.05
+    assert np.median(np.abs(c[side] @ s.axis)) < 0.2
+    assert np.median(k[2000:]) < 0.1 * np.median(k[side])
+
+
+def test_bad_clusters_give_none() -> None:
+    p = FitParams()
+    assert fit_cylinder(np.zeros((0, 3)), p) is None
+    assert fit_cylinder(np.full((500, 3), np.nan), p) is None
+    assert fit_cylinder(np.random.default_rng(0).normal(size=(10, 3)), p) is None   # fewer than min_points
+    plane = np.column_stack([np.random.default_rng(1).uniform(-0.1, 0.1, (800, 2)), np.zeros(800)])
+    assert fit_cylinder(plane, FitParams(min_confidence=0.5)) is None                # a flat patch is no cylinder
+
+
+def test_parameters_are_checked() -> None:
+    with pytest.raises(ValueError, match='method'):
+        FitParams(method='ransac')
+    with pytest.raises(ValueError, match='radius'):
+        FitParams(radius_min=0.2, radius_max=0.1)
