@@ -168,3 +168,31 @@ def test_peer_with_another_type_on_our_topic_is_reported(context, capfd):
     line = next(e for e in seen if '/mixed' in e)
     assert 'a peer publishes it as std_msgs/msg/String, this node uses sensor_msgs/msg/Image' in line
     assert writer.matched_count() == 0
+
+
+def test_sigint_stops_spin_between_callbacks(tmp_path):
+    """Ctrl-C never lands inside a callback: spin returns, the node is destroyed, exit code 0."""
+    script = tmp_path / 'slow_node.py'
+    script.write_text(
+        'import time\n'
+        'from vizzy_runtime.node_tools import run\n'
+        'from vizzy_runtime.ros import Node\n'
+        'class Slow(Node):\n'
+        '    def __init__(self):\n'
+        '        super().__init__("slow")\n'
+        '        self.create_timer(0.01, self.tick)\n'
+        '    def tick(self):\n'
+        '        print("tick", flush=True)\n'
+        '        time.sleep(0.3)  # a long callback: the signal arrives in here\n'
+        '        print("tock", flush=True)\n'
+        '    def destroy_node(self):\n'
+        '        print("destroyed", flush=True)\n'
+        '        super().destroy_node()\n'
+        'run(Slow, [])\n')
+    import signal
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == 'tick'
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0
+    assert out.split() == ['tock', 'destroyed']

@@ -351,7 +351,11 @@ class Discovery:
 
     def endpoints(self) -> list[Endpoint]:
         for reader, is_writer in self._readers:
-            for sample in reader.take(N=1000):
+            try:
+                samples = reader.take(N=1000)
+            except Exception:  # noqa: BLE001 - cyclonedds' endpoint decoding can fail on a peer
+                continue       # being torn down; the next call sees the graph again
+            for sample in samples:
                 info = getattr(sample, 'sample_info', None)
                 alive = info is None or info.instance_state == InstanceState.Alive
                 key = sample.key.bytes

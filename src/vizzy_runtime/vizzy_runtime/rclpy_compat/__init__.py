@@ -13,18 +13,27 @@ from .node import Node
 _global_executor: Executor | None = None
 
 
-def _raise_keyboard_interrupt(signum: int, frame: Any) -> None:
-    raise KeyboardInterrupt
+def _on_signal(signum: int, frame: Any) -> None:
+    """SIGINT/SIGTERM, like rclpy's handler: shut the context down so spin returns between
+    callbacks. A KeyboardInterrupt raised at an arbitrary point (inside a callback, a C call or
+    the clean-up itself) could otherwise kill the process without its clean-up. A second signal
+    while the first is being honoured raises KeyboardInterrupt, for a node that hangs."""
+    context = get_default_context()
+    if context.ok():
+        context.request_shutdown()
+    else:
+        raise KeyboardInterrupt
 
 
 def init(*, args: list[str] | None = None, context: Context | None = None,
          domain_id: int | None = None, **_ignored: Any) -> None:
-    """rclpy.init: parse --ros-args (from sys.argv when args is None); SIGTERM ends spin like Ctrl-C."""
+    """rclpy.init: parse --ros-args (from sys.argv when args is None); SIGINT and SIGTERM end spin."""
     import sys
     (context or get_default_context()).init(sys.argv if args is None else args, domain_id)
-    if threading.current_thread() is threading.main_thread() \
-            and signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
-        signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler, None):
+                signal.signal(sig, _on_signal)
 
 
 def ok(*, context: Context | None = None) -> bool:

@@ -15,6 +15,7 @@ if TYPE_CHECKING:
 class Context:
     def __init__(self) -> None:
         self._ok = False
+        self._stop_requested = False  # set by SIGINT/SIGTERM: executors leave spin at a safe point
         self._lock = threading.RLock()
         self.wake = threading.Condition(self._lock)
         self.args = arguments.RosArguments()
@@ -34,9 +35,16 @@ class Context:
                 from .logging import set_default_level
                 set_default_level(self.args.log_level)
             self._ok = True
+            self._stop_requested = False
 
     def ok(self) -> bool:
-        return self._ok
+        return self._ok and not self._stop_requested
+
+    def request_shutdown(self) -> None:
+        """What the signal handler does: ok() turns False and spinning stops between callbacks
+        (never in the middle of one); the node's main then cleans up with try_shutdown()."""
+        self._stop_requested = True
+        self.notify()
 
     def notify(self) -> None:
         with self.wake:

@@ -80,7 +80,10 @@ class Executor:
         if _time.monotonic() >= self._next_type_check:
             self._next_type_check = _time.monotonic() + _TYPE_CHECK_PERIOD_S
             for node in self.get_nodes():
-                node.check_topic_types()
+                try:
+                    node.check_topic_types()
+                except Exception as err:  # noqa: BLE001 - a diagnostic must never stop a node
+                    node.get_logger().debug(f'topic type check skipped: {err}')
         for node in self.get_nodes():
             for sub in list(node.subscriptions):
                 did |= sub.take_and_dispatch() > 0
