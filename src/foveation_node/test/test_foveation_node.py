@@ -2,7 +2,9 @@
 
 from pathlib import Path
 
+import cv2
 import numpy as np
+import pytest
 
 from foveation_node import node
 from vizzy_runtime.convert import numpy_to_image
@@ -24,6 +26,9 @@ def test_images_are_checked() -> None:
     assert 'encoding' in node.image_problem(mono, 4096, 4096)
     msg.height = 100  # more rows than the data holds
     assert 'bytes' in node.image_problem(msg, 4096, 4096)
+    empty = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
+    empty.width = 0
+    assert 'empty' in node.image_problem(empty, 4096, 4096)
     big = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
     assert 'max_width' in node.image_problem(big, 32, 4096)
 
@@ -31,3 +36,30 @@ def test_images_are_checked() -> None:
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
     with node_under_test(node.FoveationNode) as ros_node:
         check_node_parameters(ros_node, node.PARAMETERS, 'max_width', 0)
+
+
+def test_parameter_checks() -> None:
+    check = node.check_parameter
+    assert check('levels', 0) and check('levels', 11) and check('levels', 5) is None
+    assert 'sigma_1' in check('sigma_1', 1.0)          # below the pyramid's floor
+    assert check('sigma_1', node.PYRAMID_SIGMA_1) is None
+    assert check('f0', 0.0) and check('f0', float('nan')) and check('f0', 25.0) is None
+    assert check('jpeg_quality', 0) and check('jpeg_quality', 101)
+    assert check('jpeg_quality', 1) is None
+    assert check('fixation_u', float('inf')) and check('fixation_u', -1.0) is None
+    assert check('follow_gaze', 1) and check('follow_gaze', True) is None
+
+
+def test_fixation_defaults_to_the_centre_and_must_be_on_the_image() -> None:
+    assert node.fixation_for(640, 480, -1.0, -1.0) == (319.5, 239.5)
+    assert node.fixation_for(640, 480, 10.0, -1.0) == (10.0, 239.5)
+    with pytest.raises(ValueError, match='outside'):
+        node.fixation_for(640, 480, 700.0, 10.0)
+
+
+def test_jpeg_keeps_the_colours() -> None:
+    rgb = np.zeros((32, 32, 3), np.uint8)
+    rgb[..., 0] = 200                                    # red in rgb8
+    decoded = cv2.imdecode(np.frombuffer(node.encode_jpeg(rgb, 'rgb8', 95), np.uint8),
+                           cv2.IMREAD_COLOR)             # BGR
+    assert decoded[16, 16, 2] > 150 and decoded[16, 16, 0] < 50

@@ -1,0 +1,167 @@
+"""The foveation node live on the bundled runtime: images in, foveated images and JPEGs out.
+
+A test node publishes camera images and gaze states and listens to the node's outputs, all in
+one process and one executor. Nothing asserts on wall-clock time: the tests wait for conditions.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from foveation_node import node as fov_node
+from foveation_node.core.synthetic import white_noise
+from vizzy_runtime.convert import image_to_numpy, numpy_to_image
+from vizzy_runtime.ros import message, qos_profile_sensor_data
+from vizzy_runtime.rclpy_compat.context import Context
+from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
+from vizzy_runtime.rclpy_compat.node import Node
+from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.testing import wait_until
+
+GazeState = message('active_vision_msgs/msg/GazeState')
+Image = message('sensor_msgs/msg/Image')
+CompressedImage = message('sensor_msgs/msg/CompressedImage')
+
+TIMEOUT = 20.0
+WIDTH, HEIGHT = 161, 121          # odd: the centre (80, 60) is a whole pixel
+F0 = 8.0
+
+
+@pytest.fixture
+def context():
+    ctx = Context()
+    ctx.init(['test'])
+    yield ctx
+    ctx.try_shutdown()
+
+
+class Camera(Node):
+    """Publishes images and gaze states; keeps what the foveation node publishes."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__('fake_camera', context=context, start_parameter_services=False)
+        self.images: list[Any] = []
+        self.jpegs: list[Any] = []
+        self.image_pub = self.create_publisher(Image, fov_node.INPUT_TOPIC, qos_profile_sensor_data)
+        self.gaze_pub = self.create_publisher(GazeState, fov_node.GAZE_STATE_TOPIC, 10)
+        self.create_subscription(Image, fov_node.OUTPUT_TOPIC, self.images.append,
+                                 qos_profile_sensor_data)
+        self.create_subscription(CompressedImage, fov_node.COMPRESSED_TOPIC, self.jpegs.append,
+                                 qos_profile_sensor_data)
+
+
+@pytest.fixture
+def graph(context):
+    camera = Camera(context)
+    foveation = fov_node.FoveationNode(
+        context=context, parameter_overrides=[Parameter('f0', value=F0)])
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(camera)
+    executor.add_node(foveation)
+    assert wait_until(lambda: camera.image_pub.get_subscription_count() > 0
+                      and camera.gaze_pub.get_subscription_count() > 0
+                      and foveation._pub.get_subscription_count() > 0
+                      and foveation._jpeg_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    try:
+        yield camera, foveation, executor
+    finally:
+        executor.remove_node(camera)
+        executor.remove_node(foveation)
+        foveation.destroy_node()
+        camera.destroy_node()
+
+
+def _scene(seed: int = 1) -> np.ndarray:
+    """A textured rgb8 image: white noise, so every region has the same fine detail."""
+    return np.clip(white_noise(WIDTH, HEIGHT, 3, std=50.0, seed=seed), 0, 255).astype(np.uint8)
+
+
+def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:
+    """Publish msg again every 0.2 s (sensor data QoS is best effort) until done()."""
+    for _ in range(int(TIMEOUT / 0.2)):
+        camera.image_pub.publish(msg)
+        if wait_until(done, 0.2, spin=executor):
+            return True
+    return False
+
+
+def _high_pass(image: np.ndarray) -> np.ndarray:
+    grey = image.astype(np.float32).mean(axis=2)
+    return np.abs(cv2.Laplacian(grey, cv2.CV_32F))
+
+
+def test_foveates_and_compresses(graph) -> None:
+    camera, foveation, executor = graph
+    scene = _scene()
+    msg = numpy_to_image(scene, 'rgb8')
+    msg.header.frame_id = 'left_camera_optical_frame'
+    msg.header.stamp.sec = 42
+    assert _send_until(camera, executor, msg, lambda: camera.images and camera.jpegs)
+
+    out_msg = camera.images[-1]
+    assert (out_msg.encoding, out_msg.width, out_msg.height) == ('rgb8', WIDTH, HEIGHT)
+    assert out_msg.header.frame_id == 'left_camera_optical_frame'
+    assert out_msg.header.stamp.sec == 42
+    out = image_to_numpy(out_msg)
+    # the fovea keeps the original pixels (within the pyramid's rounding)...
+    centre = np.s_[60 - 1:60 + 2, 80 - 1:80 + 2]
+    assert np.abs(out[centre].astype(int) - scene[centre].astype(int)).max() <= 2
+    # ...and the periphery loses its fine detail: far less high-pass energy than the input
+    corner = np.s_[5:30, 5:40]
+    assert _high_pass(out)[corner].mean() < 0.3 * _high_pass(scene)[corner].mean()
+
+    jpeg = camera.jpegs[-1]
+    assert jpeg.format == 'jpeg' and jpeg.header.stamp.sec == 42
+    data = np.asarray(jpeg.data, dtype=np.uint8)
+    decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    assert decoded is not None and decoded.shape == (HEIGHT, WIDTH, 3)
+    decoded_rgb = cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB).astype(float)
+    assert np.abs(decoded_rgb - out).mean() < 10.0       # the JPEG is of the foveated image
+    quality = foveation.get_parameter('jpeg_quality').value
+    raw = fov_node.encode_jpeg(scene, 'rgb8', quality)
+    assert data.size < 0.7 * len(raw), (data.size, len(raw))
+    assert foveation.last_bandwidth is not None          # the first frame is reported
+    assert foveation.last_bandwidth[1] == len(raw)
+
+
+def test_saccades_suppress_output(graph) -> None:
+    camera, foveation, executor = graph
+    msg = numpy_to_image(_scene(), 'rgb8')
+    camera.gaze_pub.publish(GazeState(in_saccade=True))
+    assert wait_until(lambda: foveation._in_saccade, TIMEOUT, spin=executor)
+    before = len(camera.images)
+    assert _send_until(camera, executor, msg, lambda: foveation.frames_suppressed >= 3)
+    wait_until(lambda: False, 0.3, spin=executor)       # let anything in flight arrive
+    assert len(camera.images) == before and foveation.frames_published == 0
+
+    camera.gaze_pub.publish(GazeState(in_saccade=False))
+    assert wait_until(lambda: not foveation._in_saccade, TIMEOUT, spin=executor)
+    assert _send_until(camera, executor, msg, lambda: len(camera.images) > before)
+
+
+def test_bad_images_are_dropped_and_the_node_keeps_working(graph, capsys) -> None:
+    camera, foveation, executor = graph
+    mono = numpy_to_image(np.full((HEIGHT, WIDTH), 100, np.uint8), 'mono8')
+    assert _send_until(camera, executor, mono,
+                       lambda: "'mono8'" in capsys.readouterr().err)
+    assert not camera.images
+
+    # a fixation outside the image: logged and skipped, nothing published
+    result = foveation.set_parameters([Parameter('fixation_u', value=1000.0)])[0]
+    assert result.successful
+    msg = numpy_to_image(_scene(), 'rgb8')
+    assert _send_until(camera, executor, msg, lambda: 'outside' in capsys.readouterr().err)
+    assert not camera.images
+
+    # back on the image, and a new fovea size (the Foveator is rebuilt): the node works
+    assert all(r.successful for r in foveation.set_parameters(
+        [Parameter('fixation_u', value=-1.0), Parameter('f0', value=30.0)]))
+    assert _send_until(camera, executor, msg, lambda: camera.images)
+    assert foveation._foveator is not None and foveation._foveator.f0 == 30.0
+    # bad values are refused at run time
+    assert not foveation.set_parameters([Parameter('jpeg_quality', value=0)])[0].successful
+    assert not foveation.set_parameters([Parameter('sigma_1', value=1.0)])[0].successful
