@@ -186,19 +186,7 @@ def fixation_point(positions: Mapping[str, float] | Sequence[float] | np.ndarray
     ahead of the cameras' midpoint along the mean optical axis.
     """
     q = as_joint_array(positions)
-    poses = _poses(q)
-    pl, pr = poses[LEFT_OPTICAL_FRAME], poses[RIGHT_OPTICAL_FRAME]
-    ol, dl, orr, dr = pl[:3, 3], pl[:3, 2], pr[:3, 3], pr[:3, 2]
-    w0 = ol - orr
-    b = float(dl @ dr)
-    denom = 1.0 - b * b
-    if denom > 1e-12:
-        d, e = float(dl @ w0), float(dr @ w0)
-        s, t = (b * e - d) / denom, (e - b * d) / denom
-        if 0.0 < s < max_distance and 0.0 < t < max_distance:
-            return 0.5 * ((ol + s * dl) + (orr + t * dr))
-    origin, rot = cyclopean_ray(q)
-    return origin + max_distance * rot[:, 2]
+    return kinematics.fixation_from_joints(dict(zip(kinematics.JOINT_NAMES, q.tolist())), max_distance)
 
 
 # --- validation -----------------------------------------------------------------------------------
