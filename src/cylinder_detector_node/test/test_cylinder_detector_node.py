@@ -31,3 +31,32 @@ def test_clouds_are_checked() -> None:
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
     with node_under_test(node.CylinderDetectorNode) as ros_node:
         check_node_parameters(ros_node, node.PARAMETERS, 'heartbeat_period_s', 0.0)
+
+
+def test_parameters_taken_together_and_mapped_to_the_core() -> None:
+    values = {name: default for name, default, _ in node.PARAMETERS}
+    assert node.check_all(values) is None
+    assert 'radius_min_m' in node.check_all({**values, 'radius_min_m': 0.2})
+    assert node.check_parameter('method', 'hough') and node.check_parameter('bias', 'up')
+    seg, fit = node.pipeline_params({**values, 'method': 'rabbani', 'max_range_m': 0.0})
+    assert fit.method == 'rabbani' and seg.max_range is None
+    assert fit.n_directions == values['n_directions'] and seg.voxel_size == values['voxel_size_m']
+
+
+def test_markers_turn_z_onto_the_axis() -> None:
+    from cylinder_detector_node.core.fitting import Cylinder
+    for axis in ([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -0.6, 0.8], [0.0, 0.0, -1.0]):
+        x, y, z, w = node.quaternion_z_to(np.array(axis))
+        image = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+        assert np.allclose(image, axis, atol=1e-9)
+    header = node.CylinderArray().header
+    header.frame_id = 'cam'
+    cyl = Cylinder((0.1, 0.2, 0.9), (0.0, -0.6, 0.8), 0.03, 0.12, 0.8, 80, 100)
+    markers = node.marker_array(header, [cyl]).markers
+    assert [m.action for m in markers][0] == node.Marker.DELETEALL
+    body = markers[1]
+    assert body.type == node.Marker.CYLINDER and body.header.frame_id == 'cam'
+    assert (body.scale.x, body.scale.y, body.scale.z) == (0.06, 0.06, 0.12)
+    assert body.color.g > body.color.r          # confident: green
+    arr = node.cylinder_array(header, [cyl])
+    assert arr.cylinders[0].radius == 0.03 and arr.cylinders[0].fit_quality == 0.8

@@ -1,0 +1,176 @@
+"""The cylinder detector live on the bundled runtime: organized clouds in, cylinders and markers out.
+
+A test node publishes synthetic organized clouds (core.scene: a ray-cast tabletop seen from a
+camera optical frame) and listens to /cylinders and /cylinders/markers, all in one process and one
+executor (the detector's pipeline runs on its own worker thread). Nothing asserts on wall-clock
+time: the tests wait for conditions.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from cylinder_detector_node import node as cyl_node
+from cylinder_detector_node.core.scene import make_tabletop
+from vizzy_runtime.convert import array_to_pointcloud2
+from vizzy_runtime.ros import message, qos_profile_sensor_data
+from vizzy_runtime.rclpy_compat.context import Context
+from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
+from vizzy_runtime.rclpy_compat.node import Node
+from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.testing import wait_until
+
+CylinderArray = message('active_vision_msgs/msg/CylinderArray')
+MarkerArray = message('visualization_msgs/msg/MarkerArray')
+Marker = message('visualization_msgs/msg/Marker')
+PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+
+TIMEOUT = 60.0
+FRAME = 'rgbd_camera_optical_frame'
+XYZ = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
+
+
+@pytest.fixture
+def context():
+    ctx = Context()
+    ctx.init(['test'])
+    yield ctx
+    ctx.try_shutdown()
+
+
+class Camera(Node):
+    """Publishes clouds; keeps what the detector publishes."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__('fake_rgbd', context=context, start_parameter_services=False)
+        self.arrays: list[Any] = []
+        self.markers: list[Any] = []
+        self.cloud_pub = self.create_publisher(PointCloud2, cyl_node.CLOUD_TOPIC,
+                                               qos_profile_sensor_data)
+        self.create_subscription(CylinderArray, cyl_node.CYLINDERS_TOPIC, self.arrays.append, 10)
+        self.create_subscription(MarkerArray, cyl_node.MARKERS_TOPIC, self.markers.append, 10)
+
+
+@pytest.fixture
+def graph(context):
+    camera = Camera(context)
+    detector = cyl_node.CylinderDetectorNode(
+        context=context, parameter_overrides=[Parameter('heartbeat_period_s', value=3600.0)])
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(camera)
+    executor.add_node(detector)
+    assert wait_until(lambda: camera.cloud_pub.get_subscription_count() > 0
+                      and detector._pub.get_subscription_count() > 0
+                      and detector._marker_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    try:
+        yield camera, detector, executor
+    finally:
+        executor.remove_node(camera)
+        executor.remove_node(detector)
+        detector.destroy_node()
+        camera.destroy_node()
+
+
+def _cloud_msg(xyz: np.ndarray, stamp_sec: int) -> Any:
+    grid = np.empty(xyz.shape[:2], dtype=XYZ)
+    grid['x'], grid['y'], grid['z'] = xyz[..., 0], xyz[..., 1], xyz[..., 2]
+    msg = array_to_pointcloud2(grid)
+    msg.header.frame_id = FRAME
+    msg.header.stamp.sec = stamp_sec
+    return msg
+
+
+def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:
+    """Publish msg again every second (sensor data QoS is best effort) until done()."""
+    for _ in range(int(TIMEOUT)):
+        camera.cloud_pub.publish(msg)
+        if wait_until(done, 1.0, spin=executor):
+            return True
+    return False
+
+
+def test_two_upright_cylinders_on_a_table(graph) -> None:
+    camera, detector, executor = graph
+    scene = make_tabletop(np.random.default_rng(3), n_cylinders=2, n_distractors=0)
+    msg = _cloud_msg(scene.cloud, 42)
+    assert msg.height == 480 and msg.width == 640
+    stamped = lambda a: a.header.stamp.sec == 42   # noqa: E731
+    marked = lambda m: m.markers and m.markers[0].header.stamp.sec == 42   # noqa: E731
+    assert _send_until(camera, executor, msg,
+                       lambda: any(map(stamped, camera.arrays)) and any(map(marked, camera.markers)))
+    out = next(a for a in camera.arrays if stamped(a))
+    assert out.header.frame_id == FRAME
+    assert len(out.cylinders) == 2, [(c.center, c.radius) for c in out.cylinders]
+    assert sorted(c.id for c in out.cylinders) == [0, 1]
+    # "up" of the table in the optical frame: the table normal, from the ground truth's camera
+    for base, radius, height in scene.cylinders:
+        centre_true = base + 0.5 * height * _up(scene)
+        c = min(out.cylinders, key=lambda c: np.linalg.norm(_xyz(c.center) - centre_true))
+        axis = _xyz(c.axis)
+        assert abs(np.linalg.norm(axis) - 1.0) < 1e-6
+        assert np.degrees(np.arccos(min(1.0, axis @ _up(scene)))) < 10.0
+        # distance from the true centre to the fitted axis, and the height along it
+        d = centre_true - _xyz(c.center)
+        assert np.linalg.norm(d - (d @ axis) * axis) < 0.02
+        assert abs(c.radius - radius) < 0.2 * radius
+        assert abs(c.height - height) < 0.3 * height
+        assert c.label == 'cylinder' and 0.5 <= c.confidence <= 1.0
+        assert c.fit_quality == c.confidence
+
+    markers = next(m for m in camera.markers if marked(m)).markers
+    assert markers[0].action == Marker.DELETEALL
+    bodies = [m for m in markers if m.type == Marker.CYLINDER]
+    assert len(bodies) == 2 and all(m.header.frame_id == FRAME for m in bodies)
+    for m, c in zip(sorted(bodies, key=lambda m: m.id), sorted(out.cylinders, key=lambda c: c.id)):
+        q = m.pose.orientation
+        z_axis = _rotate_z(q.x, q.y, q.z, q.w)
+        assert np.allclose(z_axis, _xyz(c.axis), atol=1e-6)
+        assert m.scale.x == pytest.approx(2 * c.radius) and m.scale.z == pytest.approx(c.height)
+    assert sum(m.type == Marker.TEXT_VIEW_FACING for m in markers) == 2
+    assert detector.frames_processed >= 1
+
+
+def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capsys) -> None:
+    camera, detector, executor = graph
+    msg = _cloud_msg(np.full((48, 64, 3), np.nan), 7)
+    assert _send_until(camera, executor, msg,
+                       lambda: any(a.header.stamp.sec == 7 for a in camera.arrays))
+    assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 7)
+    assert wait_until(lambda: '0 finite points' in capsys.readouterr().err, TIMEOUT, spin=executor)
+    assert any(m.markers[0].header.stamp.sec == 7 and [k.action for k in m.markers] == [Marker.DELETEALL]
+               for m in camera.markers)
+
+    # a bare table (no objects): empty array, the node keeps working; parameters change live
+    bare = make_tabletop(np.random.default_rng(0), n_cylinders=0, n_distractors=0)
+    assert _send_until(camera, executor, _cloud_msg(bare.cloud, 8),
+                       lambda: any(a.header.stamp.sec == 8 for a in camera.arrays))
+    assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 8)
+    assert detector.set_parameters([Parameter('method', value='rabbani'),
+                                    Parameter('classifier_enabled', value=True)])[0].successful
+    assert detector._params[1].method == 'rabbani'
+    assert 'not available yet' in capsys.readouterr().err
+    assert not detector.set_parameters([Parameter('radius_min_m', value=0.5)])[0].successful
+    assert not detector.set_parameters([Parameter('bias', value='sideways')])[0].successful
+
+
+def _up(scene: Any) -> np.ndarray:
+    """The table normal (table-frame +z) in the camera frame, from two cylinders' bases would be
+    ambiguous; the scene's camera rotation is fixed: recompute it as make_tabletop does."""
+    eye = np.array([0.0, -0.55, 0.6])
+    fwd = -eye / np.linalg.norm(eye)
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(fwd, right)
+    return np.stack([right, down, fwd]) @ np.array([0.0, 0.0, 1.0])
+
+
+def _xyz(v: Any) -> np.ndarray:
+    return np.array([v.x, v.y, v.z], dtype=float)
+
+
+def _rotate_z(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """The image of +z under the unit quaternion (x, y, z, w)."""
+    return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
