@@ -1,38 +1,123 @@
-"""The `mot_planner` node (thesis chapter 5): resource-constrained multiple object tracking.
+"""The `mot_planner` node (thesis chapter 5): multiple object tracking with an attention budget.
 
-Placeholder until the MOT issue: checks each left image and publishes an empty TrackArray
-with the image's header on /mot/tracks.
+Subscribes /vizzy/left/image_raw (sensor data QoS, rgb8 or bgr8) and /vizzy/left/camera_info
+(intrinsics for the gaze ray) and /gaze/state (saccades). Each image goes through
+core.tracker.MotTracker: predict every belief, plan at most k_max regions covering at most
+s_max of the image with MCTS within budget_ms, run the detector (HOG by default) only in those
+regions (the full frame on the first frame and every full_frame_period frames, where new tracks
+are born), associate and update. It publishes
+
+  /mot/tracks     active_vision_msgs/TrackArray: the confirmed tracks, image header
+  /mot/attention  active_vision_msgs/AttentionRegions: the regions processed this frame and
+                  their tracks; a full-frame detection is one image-sized region with
+                  track_id 0 and budget_fraction 1.0
+  /mot/overlay    sensor_msgs/Image rgb8 (if publish_overlay): the image with attended regions
+                  (yellow; cyan for a full frame) and track boxes with ids (green)
+  /gaze/command   active_vision_msgs/GazeCommand, MOTION_PURSUIT at gaze_priority from source
+                  'mot_planner', at most gaze_rate_hz, only while tracks exist, not during a
+                  saccade: the fixation point is gaze_depth_m along the ray through the tracks'
+                  mean centre, in the image's frame_id (needs camera_info)
+
+Track velocities are converted from px/frame to px/s with the frame period measured from the
+image stamps (NOMINAL_FPS until two stamped frames arrived). Bad input (an unsupported encoding,
+an empty or truncated image) is logged (throttled) and dropped; a frame size change resets the
+tracker with a warning and bootstraps on the new size. Changing k_max, s_max, alpha_c, alpha_s or
+budget_ms keeps the tracks; changing a detector setting restarts the tracker.
+
+The detector comes from the module-level DETECTOR_FACTORY(params) (HOG from the detector
+parameters); tests replace it with a stub that needs no real people.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import math
+import time
+from dataclasses import replace
+from typing import Any, Callable
 
-from vizzy_runtime.convert import ConversionError, image_to_numpy
+import cv2
+import numpy as np
+
+from mot_planner_node.core.detector import Detector, HogDetector
+from mot_planner_node.core.kalman import predict
+from mot_planner_node.core.planner import PlannerConfig
+from mot_planner_node.core.regions import constraint_areas
+from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
+from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
 from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 Image = message('sensor_msgs/msg/Image')
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
+RegionOfInterest = message('sensor_msgs/msg/RegionOfInterest')
+Track = message('active_vision_msgs/msg/Track')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
+AttentionRegions = message('active_vision_msgs/msg/AttentionRegions')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+GazeState = message('active_vision_msgs/msg/GazeState')
 
 IMAGE_TOPIC = '/vizzy/left/image_raw'
+CAMERA_INFO_TOPIC = '/vizzy/left/camera_info'
+GAZE_STATE_TOPIC = '/gaze/state'
 TRACKS_TOPIC = '/mot/tracks'
+ATTENTION_TOPIC = '/mot/attention'
+OVERLAY_TOPIC = '/mot/overlay'
+GAZE_COMMAND_TOPIC = '/gaze/command'
+SOURCE = 'mot_planner'
 ENCODINGS = ('rgb8', 'bgr8')
+NOMINAL_FPS = 30.0
+WARN_PERIOD_S = 5.0
 
 # (name, default, description): the node declares exactly these.
 PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('k_max', 3, 'K_max: most search regions processed per frame (section 5.3.4), >= 1.'),
+    ('k_max', 3, 'K_max: most search regions processed per frame (section 5.3.4), in [1, 20].'),
     ('s_max', 0.1,
      'S_max: largest fraction of the image area processed per frame (section 5.3.4), in (0, 1].'),
+    ('alpha_c', 1.0, 'Search-region width in centre stds (Eq. 5.18), in [0, 10].'),
+    ('alpha_s', 1.0, 'Search-region width in scale stds (Eq. 5.19), in [0, 10].'),
+    ('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in (0, 1000].'),
+    ('full_frame_period', 30,
+     'A full-frame detection (new tracks are born) every this many frames, in [1, 100000].'),
+    ('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in [-10, 10].'),
+    ('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].'),
+    ('scale', 1.05, 'HOG pyramid scale step, in (1, 2].'),
+    ('publish_overlay', True, f'Publish the overlay image on {OVERLAY_TOPIC}.'),
+    ('publish_gaze', True,
+     f'Send pursuit commands on {GAZE_COMMAND_TOPIC} to keep the tracks in view.'),
+    ('gaze_priority', 10,
+     'Priority of the gaze commands (below the other nodes\' saccades), in [0, 1000].'),
+    ('gaze_depth_m', 3.0, 'Nominal depth of the fixation point along the group\'s ray [m], '
+     'in (0.1, 100].'),
+    ('gaze_rate_hz', 2.0, 'Most gaze commands per second, in (0, 30].'),
 )
+PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
+DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
+_BOOLS = ('publish_overlay', 'publish_gaze')
+_INTS = ('k_max', 'full_frame_period', 'win_stride', 'gaze_priority')
+_RANGES: dict[str, tuple[float, float, bool]] = {   # name: (lo, hi, lo exclusive)
+    'k_max': (1, 20, False), 's_max': (0.0, 1.0, True), 'alpha_c': (0.0, 10.0, False),
+    'alpha_s': (0.0, 10.0, False), 'budget_ms': (0.0, 1000.0, True),
+    'full_frame_period': (1, 100000, False), 'hit_threshold': (-10.0, 10.0, False),
+    'win_stride': (8, 64, False), 'scale': (1.0, 2.0, True), 'gaze_priority': (0, 1000, False),
+    'gaze_depth_m': (0.1, 100.0, True), 'gaze_rate_hz': (0.0, 30.0, True),
+}
 
 
 def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name, or None if it is."""
-    if name == 'k_max' and value < 1:
-        return f'k_max must be >= 1, got {value}'
-    if name == 's_max' and not 0.0 < value <= 1.0:
-        return f's_max must be in (0, 1], got {value}'
+    if name in _BOOLS:
+        return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f'{name} must be a number, got {value!r}'
+    if name in _INTS and not float(value).is_integer():
+        return f'{name} must be an integer, got {value}'
+    if name in _RANGES:
+        lo, hi, open_lo = _RANGES[name]
+        ok = math.isfinite(value) and (lo < value if open_lo else lo <= value) and value <= hi
+        if not ok:
+            return f'{name} must be in {"(" if open_lo else "["}{lo:g}, {hi:g}], got {value}'
+    if name == 'win_stride' and value % 8:
+        return f'win_stride must be a multiple of 8 (HOG block stride), got {value}'
     return None
 
 
@@ -47,28 +132,266 @@ def image_problem(msg: Any) -> str | None:
     return None
 
 
+def make_hog_detector(params: dict[str, Any]) -> Detector:
+    """The default detector: OpenCV's HOG people detector with the node's settings."""
+    return HogDetector(win_stride=int(params['win_stride']), scale=float(params['scale']),
+                       hit_threshold=float(params['hit_threshold']))
+
+
+#: params -> Detector. Module-level so that a test (or an integrator) can plug in another one.
+DETECTOR_FACTORY: Callable[[dict[str, Any]], Detector] = make_hog_detector
+
+
+def planner_config(params: dict[str, Any]) -> PlannerConfig:
+    return PlannerConfig(k_max=int(params['k_max']), s_max=float(params['s_max']),
+                         alpha_c=float(params['alpha_c']), alpha_s=float(params['alpha_s']),
+                         budget_ms=float(params['budget_ms']))
+
+
+def fixation_ray(u: float, v: float, k: list[float], depth: float) -> tuple[float, float, float]:
+    """The point at depth (distance along the ray) through pixel (u, v), camera optical frame."""
+    fx, cx, fy, cy = k[0], k[2], k[4], k[5]
+    ray = np.array([(u - cx) / fx, (v - cy) / fy, 1.0])
+    ray *= depth / np.linalg.norm(ray)
+    return float(ray[0]), float(ray[1]), float(ray[2])
+
+
 class MotPlannerNode(Node):
-    """Checks images and publishes (for now empty) track arrays."""
+    """Tracks people in the left image under an attention budget; publishes tracks and regions."""
 
-    def __init__(self) -> None:
-        super().__init__('mot_planner')
-        self._p = declare_parameters(self, PARAMETERS, check_parameter)
+    def __init__(self, **node_kwargs: Any) -> None:
+        super().__init__('mot_planner', **node_kwargs)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+                                     on_change=self._on_parameters_changed)
+        self._tracker = self._new_tracker()
+        self._warned: dict[str, float] = {}
+        self._in_saccade = False
+        self._k: list[float] | None = None
+        self._last_stamp: float | None = None
+        self._frame_period = 1.0 / NOMINAL_FPS
+        self._born: dict[int, int] = {}          # track id -> frame index it was born
+        self._hits: dict[int, int] = {}          # track id -> hits seen last frame
+        self._lost: dict[int, int] = {}          # track id -> consecutive frames unmatched
+        self._last_gaze = -math.inf
+        self.frames_processed = 0
+        self.frames_dropped = 0
+        self.resets = 0
+        self.gaze_commands = 0
 
-        self._pub = self.create_publisher(TrackArray, TRACKS_TOPIC, 10)
+        self._tracks_pub = self.create_publisher(TrackArray, TRACKS_TOPIC, 10)
+        self._attention_pub = self.create_publisher(AttentionRegions, ATTENTION_TOPIC, 10)
+        self._overlay_pub = self.create_publisher(Image, OVERLAY_TOPIC, qos_profile_sensor_data)
+        self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         self.create_subscription(
             Image, IMAGE_TOPIC, guarded(self, f'{IMAGE_TOPIC}: failed on an image', self._on_image),
             qos_profile_sensor_data)
+        self.create_subscription(
+            CameraInfo, CAMERA_INFO_TOPIC,
+            guarded(self, f'{CAMERA_INFO_TOPIC}: failed on a camera_info', self._on_camera_info),
+            qos_profile_sensor_data)
+        self.create_subscription(
+            GazeState, GAZE_STATE_TOPIC,
+            guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
+        p = self._p
         self.get_logger().info(
-            f'placeholder: one empty TrackArray on {TRACKS_TOPIC} per image from {IMAGE_TOPIC} '
-            f'(k_max={self._p["k_max"]}, s_max={self._p["s_max"]})')
+            f'tracking people in {IMAGE_TOPIC} onto {TRACKS_TOPIC}, {ATTENTION_TOPIC}'
+            f'{", " + OVERLAY_TOPIC if p["publish_overlay"] else ""}: k_max={p["k_max"]}, '
+            f's_max={p["s_max"]}, budget {p["budget_ms"]} ms, full frame every '
+            f'{p["full_frame_period"]} frames; gaze priority {p["gaze_priority"]}')
+
+    # --- set-up and inputs ------------------------------------------------------------------
+
+    def _new_tracker(self) -> MotTracker:
+        cfg = TrackerConfig(new_tracks='periodic',
+                            full_frame_period=int(self._p['full_frame_period']),
+                            planner=planner_config(self._p))
+        return MotTracker(DETECTOR_FACTORY(dict(self._p)), cfg)
+
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if any(name in changed for name in DETECTOR_PARAMETERS):
+            self._tracker = self._new_tracker()
+            self._forget_tracks()
+            self.get_logger().info('detector settings changed: tracker restarted')
+        elif any(name in changed for name in PLANNER_PARAMETERS):
+            t = self._tracker         # keep the tracks: only the planner's settings change
+            t.cfg = replace(t.cfg, planner=planner_config(self._p),
+                            full_frame_period=int(self._p['full_frame_period']))
+            t.planner.cfg = t.cfg.planner
+
+    def _on_gaze_state(self, msg: Any) -> None:
+        self._in_saccade = bool(msg.in_saccade)
+
+    def _on_camera_info(self, msg: Any) -> None:
+        k = [float(v) for v in msg.k]
+        if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
+            self._k = k
+
+    def _warn(self, kind: str, text: str) -> None:
+        """A warning at most once every WARN_PERIOD_S per kind of problem."""
+        now = time.monotonic()
+        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
+            self._warned[kind] = now
+            self.get_logger().warning(text)
+
+    def _forget_tracks(self) -> None:
+        self._born.clear()
+        self._hits.clear()
+        self._lost.clear()
+
+    # --- the frame loop ---------------------------------------------------------------------
 
     def _on_image(self, msg: Any) -> None:
         problem = image_problem(msg)
         if problem:
-            self.get_logger().warning(f'{IMAGE_TOPIC}: dropped image: {problem}',
-                                      throttle_duration_sec=5.0)
+            self.frames_dropped += 1
+            self._warn('image', f'{IMAGE_TOPIC}: dropped image: {problem}')
             return
-        self._pub.publish(TrackArray(header=msg.header))
+        image = image_to_numpy(msg)
+        bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else image
+        tracker = self._tracker
+        size = (int(image.shape[1]), int(image.shape[0]))
+        if tracker.image_size is not None and size != tracker.image_size:
+            self._warn('size', f'{IMAGE_TOPIC}: frame size changed from {tracker.image_size[0]}x'
+                               f'{tracker.image_size[1]} to {size[0]}x{size[1]}: tracker reset, '
+                               f'{len(tracker.tracks)} tracks dropped')
+            tracker.reset()
+            self._forget_tracks()
+            self.resets += 1
+        areas = self._constraint_areas(size)
+        try:
+            result = tracker.step(bgr)
+        except FrameError as exc:
+            self.frames_dropped += 1
+            self._warn('frame', f'{IMAGE_TOPIC}: dropped image: {exc}')
+            return
+        self.frames_processed += 1
+        self._update_frame_period(msg.header.stamp)
+        self._update_bookkeeping(result)
+        self._tracks_pub.publish(self._track_array(msg.header, result))
+        self._attention_pub.publish(self._attention(msg.header, result, areas, size))
+        if self._p['publish_overlay']:
+            self._overlay_pub.publish(numpy_to_image(
+                self._overlay(image, msg.encoding, result), 'rgb8', header=msg.header))
+        if self._p['publish_gaze']:
+            self._send_gaze(msg.header, result)
+
+    def _constraint_areas(self, size: tuple[int, int]) -> dict[int, float]:
+        """Track id -> the area the S_max constraint charges for its region this frame."""
+        t = self._tracker
+        if not len(t.tracks) or t.image_size is None:
+            return {}
+        x, P = predict(t.tracks.x, t.tracks.P, t.cfg.motion)
+        cfg = t.cfg.planner
+        regions = t.planner.regions(x, P, size)
+        areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, size)
+        return {int(i): float(a) for i, a in zip(t.tracks.ids, areas)}
+
+    def _update_frame_period(self, stamp: Any) -> None:
+        t = float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+        if self._last_stamp is not None and t > self._last_stamp:
+            dt = t - self._last_stamp
+            if dt < 5.0:                      # a pause (a bag restarted) is not a frame period
+                self._frame_period += 0.2 * (dt - self._frame_period)
+        self._last_stamp = t if t > 0 else None
+
+    def _update_bookkeeping(self, result: FrameResult) -> None:
+        """Ages (frames since birth) and frames_lost of every track, tentative ones included."""
+        tracks = self._tracker.tracks
+        alive = set()
+        for tid, hits in zip(tracks.ids.tolist(), tracks.hits.tolist()):
+            alive.add(tid)
+            if tid not in self._born:
+                self._born[tid] = result.frame
+                self._lost[tid] = 0
+            else:
+                self._lost[tid] = 0 if hits > self._hits.get(tid, 0) else self._lost[tid] + 1
+            self._hits[tid] = hits
+        for d in (self._born, self._hits, self._lost):
+            for tid in [k for k in d if k not in alive]:
+                del d[tid]
+
+    # --- outputs ----------------------------------------------------------------------------
+
+    def _track_array(self, header: Any, result: FrameResult) -> Any:
+        out = TrackArray(header=header)
+        fps = 1.0 / self._frame_period
+        jac = np.diag([1.0, 1.0, 1.0, fps, fps, fps])       # px/frame -> px/s
+        attended = set(result.attended_ids.tolist())
+        tracks = []
+        for i, tid in enumerate(result.ids.tolist()):
+            x = result.states[i]
+            box = result.boxes[i]
+            cov = jac @ result.covariances[i] @ jac
+            tracks.append(Track(
+                id=int(tid), label='person',
+                center_u=float(box[0] + box[2] / 2), center_v=float(box[1] + box[3] / 2),
+                width=float(box[2]), height=float(box[3]), scale=float(x[2]),
+                velocity_u=float(x[3] * fps), velocity_v=float(x[4] * fps),
+                velocity_scale=float(x[5] * fps), covariance=[float(c) for c in cov.ravel()],
+                attended=tid in attended,
+                age=int(result.frame - self._born.get(tid, result.frame)),
+                frames_lost=int(self._lost.get(tid, 0))))
+        out.tracks = tracks
+        return out
+
+    def _attention(self, header: Any, result: FrameResult, areas: dict[int, float],
+                   size: tuple[int, int]) -> Any:
+        width, height = size
+        rois, ids = [], []
+        for k, reg in enumerate(result.regions):
+            x0, y0 = int(max(math.floor(reg[0]), 0)), int(max(math.floor(reg[1]), 0))
+            x1, y1 = int(min(math.ceil(reg[2]), width)), int(min(math.ceil(reg[3]), height))
+            rois.append(RegionOfInterest(x_offset=x0, y_offset=y0, width=max(x1 - x0, 0),
+                                         height=max(y1 - y0, 0)))
+            ids.append(0 if result.full_frame or k >= len(result.attended_ids)
+                       else int(result.attended_ids[k]))
+        if result.full_frame:
+            fraction = 1.0
+        else:
+            fraction = sum(areas.get(i, 0.0) for i in ids) / float(width * height)
+        cfg = self._tracker.cfg.planner
+        return AttentionRegions(header=header, regions=rois, track_ids=ids,
+                                budget_fraction=float(fraction), k_max=int(cfg.k_max),
+                                s_max=float(cfg.s_max), planning_time_ms=1e3 * result.plan_s)
+
+    def _overlay(self, image: np.ndarray, encoding: str, result: FrameResult) -> np.ndarray:
+        rgb = cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if encoding == 'bgr8' else image.copy()
+        colour = (0, 255, 255) if result.full_frame else (255, 220, 0)
+        for reg in result.regions:
+            x0, y0 = int(reg[0]), int(reg[1])
+            x1, y1 = int(min(reg[2], rgb.shape[1])) - 1, int(min(reg[3], rgb.shape[0])) - 1
+            cv2.rectangle(rgb, (x0, y0), (x1, y1), colour, 1)
+        for tid, box in zip(result.ids.tolist(), result.boxes):
+            x, y, w, h = (int(round(v)) for v in box)
+            cv2.rectangle(rgb, (x, y), (x + w, y + h), (0, 255, 0), 2)
+            cv2.putText(rgb, str(tid), (x + 2, max(y - 4, 10)), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                        (0, 255, 0), 1, cv2.LINE_AA)
+        return rgb
+
+    def _send_gaze(self, header: Any, result: FrameResult) -> None:
+        if not len(result.ids) or self._in_saccade:
+            return
+        now = time.monotonic()
+        if now - self._last_gaze < 1.0 / self._p['gaze_rate_hz']:
+            return
+        if self._k is None:
+            self._warn('gaze', f'no {CAMERA_INFO_TOPIC} yet: no gaze commands')
+            return
+        if not header.frame_id:
+            self._warn('gaze', f'{IMAGE_TOPIC}: images have no frame_id: no gaze commands')
+            return
+        centres = result.boxes[:, :2] + result.boxes[:, 2:] / 2.0
+        u, v = centres.mean(axis=0)
+        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
+                          motion=GazeCommand.MOTION_PURSUIT, source=SOURCE,
+                          priority=int(self._p['gaze_priority']), hold_time=0.0)
+        cmd.header.frame_id = header.frame_id
+        cmd.header.stamp = self.get_clock().now().to_msg()
+        p = fixation_ray(float(u), float(v), self._k, float(self._p['gaze_depth_m']))
+        cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = p
+        self._gaze_pub.publish(cmd)
+        self._last_gaze = now
+        self.gaze_commands += 1
 
 
 main = main_for(MotPlannerNode)
