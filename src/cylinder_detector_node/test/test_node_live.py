@@ -33,14 +33,6 @@ FRAME = 'rgbd_camera_optical_frame'
 XYZ = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
 
 
-@pytest.fixture
-def context():
-    ctx = Context()
-    ctx.init(['test'])
-    yield ctx
-    ctx.try_shutdown()
-
-
 class Camera(Node):
     """Publishes clouds; keeps what the detector publishes."""
 

@@ -31,14 +31,6 @@ WIDTH, HEIGHT = 161, 121          # odd: the centre (80, 60) is a whole pixel
 F0 = 8.0
 
 
-@pytest.fixture
-def context():
-    ctx = Context()
-    ctx.init(['test'])
-    yield ctx
-    ctx.try_shutdown()
-
-
 class Camera(Node):
     """Publishes images and gaze states; keeps what the foveation node publishes."""
 

@@ -72,14 +72,6 @@ def render(frame: int, width: int = WIDTH, height: int = HEIGHT) -> np.ndarray:
     return image
 
 
-@pytest.fixture
-def context():
-    ctx = Context()
-    ctx.init(['test'])
-    yield ctx
-    ctx.try_shutdown()
-
-
 class Camera(Node):
     """Publishes images, camera_info and gaze states; keeps what the mot_planner publishes."""
 

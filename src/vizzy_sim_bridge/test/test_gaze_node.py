@@ -38,14 +38,6 @@ NAMES = list(kinematics.JOINT_NAMES)
 FX = 320.0 / math.tan(math.radians(85.4) / 2)
 
 
-@pytest.fixture
-def context():
-    ctx = Context()
-    ctx.init(['test'])
-    yield ctx
-    ctx.try_shutdown()
-
-
 def _tf(transforms: list[Any]) -> Any:
     out = []
     for t in transforms:
