@@ -3,7 +3,8 @@
 
     .venv/bin/python bench/mot.py [--frames 200] [--seeds 0 1 2] [--k-max 3]
 
-What it measures (no simulator recording exists yet, so the scene is synthetic):
+What it measures (on a synthetic scene, so that it runs in seconds without a renderer; the
+simulator's pedestrians are in experiments/mot_budget.py --sim):
 
 1. Tracking: a synthetic 640x480 street (:class:`SyntheticScene`, 8 people 100-170 px tall
    walking at about 1 px/frame, as in the thesis's TUD-Stadtmitte set-up) seen by the

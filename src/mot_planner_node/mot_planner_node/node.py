@@ -1,7 +1,8 @@
 """The `mot_planner` node (thesis chapter 5): multiple object tracking with an attention budget.
 
 Subscribes /vizzy/left/image_raw (sensor data QoS, rgb8 or bgr8) and /vizzy/left/camera_info
-(intrinsics for the gaze ray) and /gaze/state (saccades). Each image goes through
+(intrinsics for the gaze ray and ego-motion), /gaze/state (saccades) and /tf, /tf_static (the
+camera's pose, for ego-motion and world-frame gaze). Each image goes through
 core.tracker.MotTracker: predict every belief, plan at most k_max regions covering at most
 s_max of the image with MCTS within budget_ms, run the detector (HOG by default) only in those
 regions (the full frame on the first frame and every full_frame_period frames, where new tracks
@@ -14,9 +15,23 @@ are born), associate and update. It publishes
   /mot/overlay    sensor_msgs/Image rgb8 (if publish_overlay): the image with attended regions
                   (yellow; cyan for a full frame) and track boxes with ids (green)
   /gaze/command   active_vision_msgs/GazeCommand, MOTION_PURSUIT at gaze_priority from source
-                  'mot_planner', at most gaze_rate_hz, only while tracks exist, not during a
-                  saccade: the fixation point is gaze_depth_m along the ray through the tracks'
-                  mean centre, in the image's frame_id (needs camera_info)
+                  'mot_planner', at most gaze_rate_hz, only while established tracks exist
+                  (below), not during a saccade: the fixation point is gaze_depth_m along the
+                  ray through their mean centre (needs camera_info), in world_frame through
+                  the camera's pose at the image's stamp, or in the image's frame_id when that
+                  pose is unknown
+
+Ego-motion: with ego_motion on, the node keeps the image frame's orientation in world_frame
+(base_link: the waist, which never moves) from /tf and /tf_static, interpolated at each
+image's stamp; between two processed images the camera's rotation R gives the pure-rotation
+homography H = K R K^-1 (core.egomotion) that moves every belief before prediction, so a
+saccade or pursuit step does not throw the tracks out of their search regions. No camera_info
+or no transform at all: that frame is tracked without compensation (logged once); when /tf
+has no sample around the image's stamp the latest transform stands in for it.
+
+Gaze: only tracks detected at least gaze_min_hits times and at least gaze_min_age frames old
+steer the head (a bootstrap detection is a track at once, and a one-off false positive must
+not pull the head around).
 
 Track velocities are converted from px/frame to px/s with the frame period measured from the
 image stamps (NOMINAL_FPS until two stamped frames arrived). Bad input (an unsupported encoding,
@@ -39,13 +54,17 @@ import cv2
 import numpy as np
 
 from mot_planner_node.core.detector import Detector, HogDetector
+from mot_planner_node.core.egomotion import (OrientationHistory, rotation_between,
+                                             rotation_homography, warp_beliefs)
 from mot_planner_node.core.kalman import predict
 from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.regions import constraint_areas
 from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
 from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
-from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
+from vizzy_runtime.ros import (DurabilityPolicy, HistoryPolicy, Node, QoSProfile,
+                               ReliabilityPolicy, message, qos_profile_sensor_data)
+from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC, TransformBuffer
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
@@ -55,6 +74,7 @@ TrackArray = message('active_vision_msgs/msg/TrackArray')
 AttentionRegions = message('active_vision_msgs/msg/AttentionRegions')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
+TFMessage = message('tf2_msgs/msg/TFMessage')
 
 IMAGE_TOPIC = '/vizzy/left/image_raw'
 CAMERA_INFO_TOPIC = '/vizzy/left/camera_info'
@@ -89,24 +109,36 @@ PARAMETERS: tuple[tuple[str, Any, str], ...] = (
     ('gaze_depth_m', 3.0, 'Nominal depth of the fixation point along the group\'s ray [m], '
      'in (0.1, 100].'),
     ('gaze_rate_hz', 2.0, 'Most gaze commands per second, in (0, 30].'),
+    ('gaze_min_hits', 3, 'Only tracks detected at least this many times steer the gaze, in '
+     '[1, 1000].'),
+    ('gaze_min_age', 5, 'Only tracks at least this many frames old steer the gaze, in '
+     '[0, 100000].'),
+    ('ego_motion', True, 'Compensate the camera\'s rotation between images (from /tf).'),
+    ('world_frame', 'base_link', 'A frame that does not rotate with the head, for ego-motion.'),
 )
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
 DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
-_BOOLS = ('publish_overlay', 'publish_gaze')
-_INTS = ('k_max', 'full_frame_period', 'win_stride', 'gaze_priority')
+_BOOLS = ('publish_overlay', 'publish_gaze', 'ego_motion')
+_INTS = ('k_max', 'full_frame_period', 'win_stride', 'gaze_priority', 'gaze_min_hits',
+         'gaze_min_age')
 _RANGES: dict[str, tuple[float, float, bool]] = {   # name: (lo, hi, lo exclusive)
     'k_max': (1, 20, False), 's_max': (0.0, 1.0, True), 'alpha_c': (0.0, 10.0, False),
     'alpha_s': (0.0, 10.0, False), 'budget_ms': (0.0, 1000.0, True),
     'full_frame_period': (1, 100000, False), 'hit_threshold': (-10.0, 10.0, False),
     'win_stride': (8, 64, False), 'scale': (1.0, 2.0, True), 'gaze_priority': (0, 1000, False),
     'gaze_depth_m': (0.1, 100.0, True), 'gaze_rate_hz': (0.0, 30.0, True),
+    'gaze_min_hits': (1, 1000, False), 'gaze_min_age': (0, 100000, False),
 }
+TF_HISTORY_S = 2.0
 
 
 def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name, or None if it is."""
     if name in _BOOLS:
         return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
+    if name == 'world_frame':
+        ok = isinstance(value, str) and value.strip('/') != ''
+        return None if ok else f'world_frame must be a frame id, got {value!r}'
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return f'{name} must be a number, got {value!r}'
     if name in _INTS and not float(value).is_integer():
@@ -173,7 +205,14 @@ class MotPlannerNode(Node):
         self._hits: dict[int, int] = {}          # track id -> hits seen last frame
         self._lost: dict[int, int] = {}          # track id -> consecutive frames unmatched
         self._last_gaze = -math.inf
+        self._tf = TransformBuffer()
+        self._orientations: dict[str, OrientationHistory] = {}   # camera frame -> history
+        self._last_pose: np.ndarray | None = None   # camera in world_frame at the last frame
+        self._noted: set[str] = set()
         self.frames_processed = 0
+        self.frames_compensated = 0
+        self.frames_latest_tf = 0           # orientation from the latest tf, not the stamp's
+        self.last_ego_rotation_deg = 0.0
         self.frames_dropped = 0
         self.resets = 0
         self.gaze_commands = 0
@@ -192,6 +231,18 @@ class MotPlannerNode(Node):
         self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
             guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
+        # tf2_ros' listener QoS; our own subscriptions (not vizzy_runtime.tf.TransformListener)
+        # so that each /tf message also records the camera's orientation at its stamp.
+        tf_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                            reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.VOLATILE)
+        static_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                                reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_subscription(TFMessage, TF_TOPIC, guarded(
+            self, f'{TF_TOPIC}: skipped a TFMessage', self._on_tf), tf_qos)
+        self.create_subscription(TFMessage, TF_STATIC_TOPIC, guarded(
+            self, f'{TF_STATIC_TOPIC}: skipped a TFMessage', self._on_tf), static_qos)
         p = self._p
         self.get_logger().info(
             f'tracking people in {IMAGE_TOPIC} onto {TRACKS_TOPIC}, {ATTENTION_TOPIC}'
@@ -226,6 +277,62 @@ class MotPlannerNode(Node):
         if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
             self._k = k
 
+    def _on_tf(self, msg: Any) -> None:
+        self._tf.set_transform_messages(msg.transforms)
+        if not msg.transforms or not self._p['ego_motion']:
+            return
+        stamp = max(_seconds(t.header.stamp) for t in msg.transforms)
+        for frame, history in self._orientations.items():
+            try:
+                pose = self._tf.lookup_transform(self._p['world_frame'], frame)
+            except LookupError:
+                continue
+            history.add(stamp, pose[:3, :3], pose[:3, 3])
+
+    def _note_once(self, kind: str, text: str) -> None:
+        if kind not in self._noted:
+            self._noted.add(kind)
+            self.get_logger().info(text)
+
+    def _camera_pose(self, header: Any) -> np.ndarray | None:
+        """The image frame's pose (4x4) in world_frame at the image's stamp, or None."""
+        frame = header.frame_id.lstrip('/')
+        if not frame:
+            return None
+        history = self._orientations.get(frame)
+        if history is None:                    # first image from this frame: start recording
+            history = self._orientations[frame] = OrientationHistory(TF_HISTORY_S)
+        pose = history.pose_at(_seconds(header.stamp))
+        if pose is None:    # no /tf around this stamp (static chain, no stamps): the latest
+            try:
+                pose = self._tf.lookup_transform(self._p['world_frame'], frame)
+            except LookupError:
+                return None
+            self.frames_latest_tf += 1
+        return pose
+
+    def _ego_homography(self, header: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(H, the camera's pose now): H moves the beliefs from the last processed frame's
+        camera to this one's; None when it cannot be known."""
+        if not self._p['ego_motion']:
+            return None, None
+        pose = self._camera_pose(header)
+        if pose is None:
+            self._note_once('tf', f'no transform {self._p["world_frame"]} -> '
+                                  f'{header.frame_id or "(no frame_id)"} at the image stamps: '
+                                  'tracking without ego-motion compensation until there is one')
+            return None, None
+        if self._k is None:
+            self._note_once('k', f'no {CAMERA_INFO_TOPIC} yet: tracking without ego-motion '
+                                 'compensation until it arrives')
+            return None, pose
+        if self._last_pose is None:
+            return None, pose
+        rel = rotation_between(self._last_pose[:3, :3], pose[:3, :3])
+        self.last_ego_rotation_deg = float(np.degrees(np.arccos(
+            np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0))))
+        return rotation_homography(np.reshape(self._k, (3, 3)), rel), pose
+
     def _warn(self, kind: str, text: str) -> None:
         """A warning at most once every WARN_PERIOD_S per kind of problem."""
         now = time.monotonic()
@@ -257,13 +364,16 @@ class MotPlannerNode(Node):
             tracker.reset()
             self._forget_tracks()
             self.resets += 1
-        areas = self._constraint_areas(size)
+        homography, pose = self._ego_homography(msg.header)
+        areas = self._constraint_areas(size, homography)
         try:
-            result = tracker.step(bgr)
+            result = tracker.step(bgr, homography=homography)
         except FrameError as exc:
             self.frames_dropped += 1
             self._warn('frame', f'{IMAGE_TOPIC}: dropped image: {exc}')
             return
+        self._last_pose = pose
+        self.frames_compensated += homography is not None
         self.frames_processed += 1
         self._update_frame_period(msg.header.stamp)
         self._update_bookkeeping(result)
@@ -273,21 +383,25 @@ class MotPlannerNode(Node):
             self._overlay_pub.publish(numpy_to_image(
                 self._overlay(image, msg.encoding, result), 'rgb8', header=msg.header))
         if self._p['publish_gaze']:
-            self._send_gaze(msg.header, result)
+            self._send_gaze(msg.header, result, pose)
 
-    def _constraint_areas(self, size: tuple[int, int]) -> dict[int, float]:
+    def _constraint_areas(self, size: tuple[int, int],
+                          homography: np.ndarray | None) -> dict[int, float]:
         """Track id -> the area the S_max constraint charges for its region this frame."""
         t = self._tracker
         if not len(t.tracks) or t.image_size is None:
             return {}
-        x, P = predict(t.tracks.x, t.tracks.P, t.cfg.motion)
+        x, P = t.tracks.x, t.tracks.P
+        if homography is not None:
+            x, P = warp_beliefs(x, P, homography)
+        x, P = predict(x, P, t.cfg.motion)
         cfg = t.cfg.planner
         regions = t.planner.regions(x, P, size)
         areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, size)
         return {int(i): float(a) for i, a in zip(t.tracks.ids, areas)}
 
     def _update_frame_period(self, stamp: Any) -> None:
-        t = float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+        t = _seconds(stamp)
         if self._last_stamp is not None and t > self._last_stamp:
             dt = t - self._last_stamp
             if dt < 5.0:                      # a pause (a bag restarted) is not a frame period
@@ -368,8 +482,21 @@ class MotPlannerNode(Node):
                         (0, 255, 0), 1, cv2.LINE_AA)
         return rgb
 
-    def _send_gaze(self, header: Any, result: FrameResult) -> None:
-        if not len(result.ids) or self._in_saccade:
+    def _gaze_tracks(self, result: FrameResult) -> np.ndarray:
+        """Mask of the reported tracks allowed to steer the gaze (gaze_min_hits, gaze_min_age)."""
+        ages = np.array([result.frame - self._born.get(int(i), result.frame)
+                         for i in result.ids], dtype=np.int64)
+        return (result.hits >= int(self._p['gaze_min_hits'])) & (
+            ages >= int(self._p['gaze_min_age']))
+
+    def _send_gaze(self, header: Any, result: FrameResult, pose: np.ndarray | None) -> None:
+        """pose: the camera's pose in world_frame when the image was taken. With it the point
+        goes out in world_frame, so the head's motion since the image (the gaze controller
+        applies the latest tf) does not shift it; without it, in the image's frame."""
+        if self._in_saccade:
+            return
+        steer = self._gaze_tracks(result)
+        if not steer.any():
             return
         now = time.monotonic()
         if now - self._last_gaze < 1.0 / self._p['gaze_rate_hz']:
@@ -380,7 +507,8 @@ class MotPlannerNode(Node):
         if not header.frame_id:
             self._warn('gaze', f'{IMAGE_TOPIC}: images have no frame_id: no gaze commands')
             return
-        centres = result.boxes[:, :2] + result.boxes[:, 2:] / 2.0
+        boxes = result.boxes[steer]
+        centres = boxes[:, :2] + boxes[:, 2:] / 2.0
         u, v = centres.mean(axis=0)
         cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
                           motion=GazeCommand.MOTION_PURSUIT, source=SOURCE,
@@ -388,10 +516,17 @@ class MotPlannerNode(Node):
         cmd.header.frame_id = header.frame_id
         cmd.header.stamp = self.get_clock().now().to_msg()
         p = fixation_ray(float(u), float(v), self._k, float(self._p['gaze_depth_m']))
+        if pose is not None:
+            p = tuple(float(c) for c in pose[:3, :3] @ np.asarray(p) + pose[:3, 3])
+            cmd.header.frame_id = self._p['world_frame'].lstrip('/')
         cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = p
         self._gaze_pub.publish(cmd)
         self._last_gaze = now
         self.gaze_commands += 1
+
+
+def _seconds(stamp: Any) -> float:
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
 
 
 main = main_for(MotPlannerNode)

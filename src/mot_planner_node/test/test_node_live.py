@@ -249,3 +249,108 @@ def test_bad_frames_size_change_and_parameters(graph, capsys) -> None:
     assert set(mot._tracker.tracks.ids.tolist()) == ids
     assert not mot.set_parameters([Parameter('s_max', value=1.5)])[0].successful
     assert not mot.set_parameters([Parameter('win_stride', value=12)])[0].successful
+
+
+TFMessage = message('tf2_msgs/msg/TFMessage')
+TransformStamped = message('geometry_msgs/msg/TransformStamped')
+# The optical frame's orientation in base_link at rest (z forward = base x, x right = -y).
+OPTICAL_IN_BASE = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+def _tf(stamp: Any, rotation: np.ndarray) -> Any:
+    from scipy.spatial.transform import Rotation
+    t = TransformStamped(child_frame_id=FRAME)
+    t.header.frame_id, t.header.stamp = 'base_link', stamp
+    q = Rotation.from_matrix(rotation).as_quat()          # x, y, z, w
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = (float(v) for v in q)
+    t.transform.translation.z = 0.5
+    return TFMessage(transforms=[t])
+
+
+def _blobs(centres: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    image = np.full((HEIGHT, WIDTH, 3), 30, np.uint8)
+    for (u, v), (w, h) in zip(centres, sizes):
+        x0, y0 = int(round(u - w / 2)), int(round(v - h / 2))
+        image[max(y0, 0):y0 + int(h), max(x0, 0):x0 + int(w)] = 220
+    return image
+
+
+@pytest.mark.parametrize('ego_motion', [True, False])
+def test_ego_motion_from_tf_keeps_tracks_through_a_head_turn(graph, ego_motion) -> None:
+    """The head pans 13 deg left between two images (the people jump ~46 px right): with
+    the rotation from /tf the tracks follow; without it they are lost."""
+    from mot_planner_node.core.egomotion import rotation_homography, warp_points
+    camera, mot, executor = graph
+    tf_pub = camera.create_publisher(TFMessage, '/tf', 10)
+    assert mot.set_parameters([Parameter('ego_motion', value=ego_motion),
+                               Parameter('full_frame_period', value=1000)])[0].successful
+    assert wait_until(lambda: tf_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    camera.info_pub.publish(_camera_info())
+    assert wait_until(lambda: mot._k is not None, TIMEOUT, spin=executor)
+    centres = np.array([[76.0, 92.0], [160.0, 140.0], [236.0, 82.0]])
+    sizes = np.array([[32.0, 64.0], [40.0, 80.0], [32.0, 64.0]])
+    pan = np.radians(13.0)
+    turned = np.array([[np.cos(pan), -np.sin(pan), 0], [np.sin(pan), np.cos(pan), 0],
+                       [0, 0, 1]]) @ OPTICAL_IN_BASE
+    h = rotation_homography(np.reshape(_camera_info().k, (3, 3)),
+                            turned.T @ OPTICAL_IN_BASE)
+    moved, _ = warp_points(h, centres)
+    assert np.all(moved[:, 0] - centres[:, 0] > 40)
+    for frame in range(14):
+        rotation, seen = (turned, moved) if frame >= 7 else (OPTICAL_IN_BASE, centres)
+        msg = _image(_blobs(seen, sizes), frame)
+        tf_pub.publish(_tf(msg.header.stamp, rotation))
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        assert wait_until(lambda: FRAME not in mot._orientations
+                          or (len(mot._orientations[FRAME])
+                              and mot._orientations[FRAME]._t[-1] >= stamp - 1e-6),
+                          TIMEOUT, spin=executor)
+        assert _feed(camera, mot, executor, msg)
+    assert wait_until(lambda: len(camera.tracks) >= 14, TIMEOUT, spin=executor)
+    first, last = camera.tracks[0], camera.tracks[-1]
+    assert len(first.tracks) == 3
+    # original tracks that sit on a person after the turn
+    kept = [t for t in last.tracks if t.id in {f.id for f in first.tracks}
+            and np.min(np.hypot(*(moved - [t.center_u, t.center_v]).T)) < 6.0]
+    if ego_motion:
+        assert mot.frames_compensated >= 12
+        assert mot.last_ego_rotation_deg == pytest.approx(0.0, abs=1e-6)   # since frame 7
+        assert len(kept) == len(last.tracks) == 3
+        # gaze goes out in base_link, through the camera pose of the image it came from
+        assert wait_until(lambda: camera.gaze, TIMEOUT, spin=executor)
+        cmd = camera.gaze[-1]
+        assert cmd.header.frame_id == 'base_link'
+        p = np.array([cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z])
+        cam = turned.T @ (p - [0.0, 0.0, 0.5])
+        uv = np.reshape(_camera_info().k, (3, 3)) @ cam
+        assert uv[0] / uv[2] == pytest.approx(moved[:, 0].mean(), abs=6.0)
+    else:
+        assert mot.frames_compensated == 0
+        assert len(kept) < 3
+
+
+def test_gaze_only_on_established_tracks(graph) -> None:
+    """A one-frame false positive becomes a track at the bootstrap but never steers the head;
+    a steady person does once it has gaze_min_hits detections and gaze_min_age frames."""
+    camera, mot, executor = graph
+    camera.info_pub.publish(_camera_info())
+    assert wait_until(lambda: mot._k is not None, TIMEOUT, spin=executor)
+    person = np.array([[60.0, 120.0]])
+    ghost = np.array([[270.0, 120.0]])
+    size = np.array([[32.0, 64.0]])
+    for frame in range(5):                       # gaze_min_age = 5: nobody may steer yet
+        seen = np.concatenate([person, ghost]) if frame == 0 else person
+        assert _feed(camera, mot, executor,
+                     _image(_blobs(seen, np.repeat(size, len(seen), 0)), frame))
+        assert mot.gaze_commands == 0
+    assert camera.tracks and len(camera.tracks[0].tracks) == 2   # the ghost was a track
+    for frame in range(5, 9):
+        assert _feed(camera, mot, executor, _image(_blobs(person, size), frame))
+    assert wait_until(lambda: camera.gaze, TIMEOUT, spin=executor)
+    for cmd in camera.gaze:                      # towards the person (left), never the mean
+        assert cmd.fixation_point.x < 0
+    p = camera.gaze[-1].fixation_point
+    assert p.x / p.z == pytest.approx((60.0 - WIDTH / 2) / 200.0, abs=0.03)
+    assert not mot.set_parameters([Parameter('gaze_min_hits', value=0)])[0].successful
+    assert not mot.set_parameters([Parameter('world_frame', value='')])[0].successful

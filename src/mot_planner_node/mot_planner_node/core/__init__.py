@@ -6,6 +6,7 @@
 - planner: the resource-constrained POMDP solved online by MCTS/UCT (Eqs. 5.21-5.25).
 - association: Hungarian association on Mahalanobis distance with gating.
 - detector: the detector plug-in interface and OpenCV's HOG people detector.
+- egomotion: beliefs moved by the camera's rotation between frames (H = K R K^-1).
 - tracker: the per-frame pipeline of Fig. 5.1 (predict, plan, detect, associate, update).
 - motchallenge, metrics: MOTChallenge folders and CLEAR MOT / IDF1 scoring.
 - simulated: synthetic pedestrians and a simulated detector for tests and benchmarks.

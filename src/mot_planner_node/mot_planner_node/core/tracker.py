@@ -22,6 +22,10 @@ dropped on their first miss. A track is deleted when it has been missed more tha
 leaves the image, or when its position uncertainty exceeds ``max_std_frac`` of its window
 size (it can no longer be found).
 
+Ego-motion: when the camera rotated since the previous frame, ``step(image, homography=H)``
+(``H = K R K^-1``, :mod:`.egomotion`) first moves every belief into the current camera, then
+predicts; without it a head movement makes every target jump out of its search region.
+
 Bad input (not uint8, empty, wrong shape, a frame size that differs from the first frame)
 raises :class:`FrameError` before anything changes; all per-frame work is done on copies and
 committed at the end, so an exception from the detector also leaves the tracker as it was.
@@ -38,6 +42,7 @@ from numpy.typing import NDArray
 
 from .association import associate, gate_threshold
 from .detector import Detections, Detector, box_iou, check_image
+from .egomotion import warp_beliefs
 from .kalman import STATE_DIM, MotionModel, predict, update
 from .observation import ObservationModel
 from .planner import MctsPlanner, PlannerConfig
@@ -136,8 +141,8 @@ class FrameResult:
     """What one frame produced.
 
     ids, boxes (n, 4) x, y, w, h object boxes, states (n, 6), covariances (n, 6, 6): the
-    confirmed tracks. regions (m, 6): the processed regions (one full-image row for a
-    full-frame detection). attended_ids: tracks whose region was processed. detections: the
+    confirmed tracks; hits (n,): how many times each was detected. regions (m, 6): the
+    processed regions (one full-image row for a full-frame detection). attended_ids: tracks whose region was processed. detections: the
     detector's window boxes. detector_s, plan_s, total_s: wall times.
     """
 
@@ -146,6 +151,7 @@ class FrameResult:
     boxes: FloatArray
     states: FloatArray
     covariances: FloatArray
+    hits: IntArray
     regions: FloatArray
     attended_ids: IntArray
     detections: Detections
@@ -243,10 +249,23 @@ class MotTracker:
 
     # --- the frame loop -------------------------------------------------------------------
 
-    def coast(self) -> FrameResult:
-        """Advance one frame without an image (e.g. a corrupt frame): predict only."""
-        t0 = time.perf_counter()
+    def _warped(self, homography: FloatArray | None) -> Tracks:
+        """The tracks moved into the current camera (ego-motion), or as they are."""
         tracks = self.tracks
+        if homography is None or not len(tracks):
+            return tracks
+        h = np.asarray(homography, dtype=float)
+        if h.shape != (3, 3) or not np.isfinite(h).all() or abs(h[2, 2]) < 1e-12:
+            raise ValueError(f'homography must be a finite 3x3 matrix with H[2, 2] != 0, '
+                             f'got {h!r}')
+        x, P = warp_beliefs(tracks.x, tracks.P, h / h[2, 2])
+        return replace(tracks, x=x, P=P)
+
+    def coast(self, homography: FloatArray | None = None) -> FrameResult:
+        """Advance one frame without an image (e.g. a corrupt frame): predict only (after
+        moving the beliefs by the camera's rotation, as in :meth:`step`)."""
+        t0 = time.perf_counter()
+        tracks = self._warped(homography)
         if len(tracks):
             x, P = predict(tracks.x, tracks.P, self.cfg.motion)
             tracks = replace(tracks, x=x, P=P)
@@ -255,8 +274,13 @@ class MotTracker:
         return self._result(Detections.empty(), np.zeros((0, 6)), np.zeros(0, np.int64), False,
                             0.0, 0.0, t0, 0, 0, deleted, 0.0)
 
-    def step(self, image: NDArray[np.uint8]) -> FrameResult:
-        """Process one frame; returns the confirmed tracks and what was attended."""
+    def step(self, image: NDArray[np.uint8],
+             homography: FloatArray | None = None) -> FrameResult:
+        """Process one frame; returns the confirmed tracks and what was attended.
+
+        homography: the pixel motion (3, 3) of the camera's rotation since the previous frame
+        (:func:`.egomotion.rotation_homography`); beliefs are moved by it before prediction.
+        """
         t0 = time.perf_counter()
         image, size = self._check(image)
         cfg = self.cfg
@@ -264,7 +288,7 @@ class MotTracker:
         bootstrap = self.image_size is None
         full = (bootstrap or cfg.mode == 'full'
                 or (cfg.new_tracks == 'periodic' and self.frame_index % cfg.full_frame_period == 0))
-        tracks = self.tracks
+        tracks = self._warped(homography)
         if len(tracks):
             x, P = predict(tracks.x, tracks.P, cfg.motion)
             tracks = replace(tracks, x=x, P=P)
@@ -345,7 +369,7 @@ class MotTracker:
         t = self.tracks.select(self.tracks.confirmed)
         result = FrameResult(
             frame=self.frame_index, ids=t.ids.copy(), boxes=self.object_boxes(t.x),
-            states=t.x.copy(), covariances=t.P.copy(), regions=regions,
+            states=t.x.copy(), covariances=t.P.copy(), hits=t.hits.copy(), regions=regions,
             attended_ids=attended_ids, detections=det, full_frame=full, detector_s=detector_s,
             plan_s=plan_s, total_s=time.perf_counter() - t0, plan_iterations=iterations,
             processed_fraction=processed, created=created, deleted=deleted)
