@@ -1,43 +1,218 @@
-"""The `stereo_ses` node (thesis chapter 3): stereo reconstruction into the Sensory Ego-Sphere.
+"""The `stereo_ses` node (thesis chapter 3): foveated stereo into the Sensory Ego-Sphere, and gaze.
 
-Placeholder until the stereo/SES issue: checks the left and right images and publishes an
-empty /ses/cells cloud (fields x, y, z, information) on a timer.
+Subscribes
+  /vizzy/{left,right}/image_raw   sensor_msgs/Image rgb8/bgr8 (sensor data QoS), paired by stamp
+  /vizzy/{left,right}/camera_info sensor_msgs/CameraInfo: K of each camera
+  /tf, /tf_static                 camera poses: left optical frame in `ego_frame`, right in left
+  /gaze/state                     active_vision_msgs/GazeState: nothing is fused while in_saccade
+                                  (nor pairs stamped before the last saccade ended)
+
+Per stereo pair (core.stereo.StereoPipeline): the images as the sensor sees them (Cartesian grid
+or log-polar then inverse, section 3.4.2), SGBM, mid-point triangulation (Eq. 3.8) and the
+Unscented Transform (Eqs. 3.9-3.18) in the LEFT camera's optical frame; then
+SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
+
+  /stereo/points  sensor_msgs/PointCloud2, frame = the left image's frame_id (the left camera
+                  optical frame), the image's stamp; fields x y z [m] (float32), rgb (float32
+                  packed 0x00RRGGBB, PCL style), cxx cxy cxz cyy cyz czz [m^2] (float32, the UT
+                  covariance, Eq. 3.18, same frame), information (-log|Sigma|, Eq. 3.45)
+  /ses/cells      sensor_msgs/PointCloud2, frame `ego_frame`; fields x y z [m] (the cell means),
+                  information (-log|Sigma|, Eq. 3.45; colour by it), sigma_r [m] (the reward
+                  standard deviation of Eq. 3.39, square-rooted), observations (float32 count);
+                  the observed cells only unless publish_unobserved_cells; at cells_rate_hz
+  /gaze/command   active_vision_msgs/GazeCommand (if publish_gaze): MODE_FIXATION_POINT in
+                  `ego_frame`, MOTION_SACCADE, source 'stereo_ses', priority gaze_priority (20),
+                  hold_time: the chosen cell (core.decision.choose_fixation, UCB / PI / EI) once
+                  decision_period_s has passed since the last command AND frames_per_fixation
+                  frames were fused since the last saccade settled
+
+Processing never blocks the executor: callbacks only store messages; a worker thread takes the
+newest complete pair (older pairs are dropped: newest wins, one in flight) at most max_rate_hz
+times a second, so the node leaves CPU to the rest of the graph (2 Hz log-polar ~ 0.3-0.4 of a
+core on the development machine). Bad input (unsupported encodings, left/right sizes or stamps
+that do not match, no camera_info or no tf yet, camera_info that disagrees with the image,
+degenerate geometry, NaN disparities) is skipped with a throttled message; the ego-sphere stays
+consistent (SensoryEgoSphere.fuse validates everything before it changes state).
 """
 
 from __future__ import annotations
 
+import math
+import threading
+import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from stereo_ses_node.core.decision import (
+    ACQUISITIONS, choose_fixation, reachable_cells, reward_statistics)
+from stereo_ses_node.core.information import information, information_from_precision
+from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
+from stereo_ses_node.core.stereo import StereoFrame, StereoPipeline
+from stereo_ses_node.core.ut import StereoRig, UTParams
 from vizzy_runtime.convert import ConversionError, array_to_pointcloud2, image_to_numpy
 from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
+from vizzy_runtime.tf import TransformBuffer, TransformListener
 
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+GazeState = message('active_vision_msgs/msg/GazeState')
 
+EYES = ('left', 'right')
 IMAGE_TOPICS = {'left': '/vizzy/left/image_raw', 'right': '/vizzy/right/image_raw'}
+INFO_TOPICS = {'left': '/vizzy/left/camera_info', 'right': '/vizzy/right/camera_info'}
+GAZE_STATE_TOPIC = '/gaze/state'
+GAZE_COMMAND_TOPIC = '/gaze/command'
+POINTS_TOPIC = '/stereo/points'
 CELLS_TOPIC = '/ses/cells'
+SOURCE = 'stereo_ses'
 ENCODINGS = ('rgb8', 'bgr8')
-# One SES cell: mean position [m] in the SES frame and scalar information (inverse variance).
-CELL_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('information', '<f4')])
+WARN_PERIOD_S = 5.0
+# After a gaze command, frames do not count towards frames_per_fixation until the saccade has
+# started (in_saccade seen) or this long has passed (a tiny or refused movement).
+SACCADE_START_TIMEOUT_S = 1.0
+# Images of one eye kept waiting for the other eye's image with the same stamp.
+UNPAIRED_KEPT = 3
+
+POINT_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('rgb', '<f4'),
+                        ('cxx', '<f4'), ('cxy', '<f4'), ('cxz', '<f4'), ('cyy', '<f4'),
+                        ('cyz', '<f4'), ('czz', '<f4'), ('information', '<f4')])
+CELL_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('information', '<f4'),
+                       ('sigma_r', '<f4'), ('observations', '<f4')])
+
+SENSORS = ('cartesian', 'logpolar')
+BIAS_NAMES = tuple(BIASES) + ('user',)
 
 # (name, default, description): the node declares exactly these.
 PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('publish_rate_hz', 2.0, 'Rate of /ses/cells [Hz], in (0, 100].'),
-    ('frame_id', 'ego', 'Frame of the SES cells (head-centred, world-fixed orientation).'),
+    ('sensor', 'logpolar', "Retina: 'cartesian' (uniform grid) or 'logpolar' (section 3.3.2)."),
+    ('n_rf', 200, 'Receptive fields per side: an n_rf x n_rf grid (cartesian) or n_rf rings x '
+     'n_rf wedges (logpolar); thesis 200. In [16, 512].'),
+    ('n_cells', 20000, 'Ego-sphere cells N_x, in [100, 200000]; a change resets the memory.'),
+    ('bias', 'unbiased', "Ego-sphere cell distribution (Table 3.1): 'unbiased', 'top', 'down', "
+     "'target', or 'user' (bias_weights / bias_means / bias_variances). A change resets the "
+     'memory.'),
+    ('bias_weights', [1.0], "User GMM ('user' bias): M component weights (>= 0, positive sum)."),
+    ('bias_means', [0.0, 0.0, 0.0], "User GMM: 3 M means (x y z per component, ego frame, z up)."),
+    ('bias_variances', [0.5, 0.5, 0.5],
+     'User GMM: 3 M diagonal variances (xx yy zz per component), > 0.'),
+    ('seed', 0, 'Seed of the cell sampling, in [0, 2^31).'),
+    ('acquisition', 'ucb', "Next-best-view rule: 'ucb', 'pi' or 'ei' (Eqs. 3.41-3.43)."),
+    ('ucb_alpha', 100.0, 'UCB exploration weight alpha (Eq. 3.41), >= 0; 0 is greedy, .inf '
+     'pure exploration (thesis: 0, 0.01, 1, 100, inf).'),
+    ('ut_alpha', 0.25, 'UT alpha (Eqs. 3.14-3.16), in (0, 10].'),
+    ('ut_beta', 2.0, 'UT beta (2 for Gaussians), in [0, 10].'),
+    ('ut_kappa', 3.0, 'UT kappa, in [-3.9, 100] (L + lambda must stay > 0).'),
+    ('max_rate_hz', 2.0, 'Most stereo pairs processed per second, in (0, 30] (newest pair wins).'),
+    ('max_stamp_skew_s', 0.005, 'Largest left/right stamp difference of a pair [s], in [0, 1].'),
+    ('ego_frame', 'ego', 'Frame of the ego-sphere and of the gaze commands (head-centred, '
+     'world-fixed orientation, z up).'),
+    ('publish_gaze', True, f'Send the chosen fixations on {GAZE_COMMAND_TOPIC}.'),
+    ('gaze_priority', 20, 'Priority of the gaze commands (mot_planner 10 < 20 < foveation 30), '
+     'in [0, 1000].'),
+    ('hold_time', 1.0, 'hold_time of the gaze commands [s], in [0, 60].'),
+    ('decision_period_s', 2.0, 'Least time between two gaze commands [s], in [0.1, 600].'),
+    ('frames_per_fixation', 2, 'Frames fused after a saccade settles before the next decision, '
+     'in [1, 100].'),
+    ('min_z_m', -0.7, 'Cells whose mean lies below this ego-frame height [m] (the floor, at '
+     'about -0.9 m) are not fixation candidates (section 3.4.2), in [-10, 10].'),
+    ('azimuth_limit_deg', 75.0, 'Only cells within this azimuth of straight ahead (ego x) are '
+     'fixation candidates (neck pan 53 + eye pan 38 deg, less the vergence), in (0, 180].'),
+    ('elevation_limits_deg', [-40.0, 45.0], 'Only cells within these [min, max] elevations '
+     '[deg] are fixation candidates (where the gaze IK reaches at 1-8 m), within [-90, 90].'),
+    ('fixation_distance_m', [0.3, 8.0], 'A chosen cell mean is moved along its direction into '
+     'this [min, max] distance [m] (the gaze controller refuses < 0.15 m and > 10 m).'),
+    ('cells_rate_hz', 1.0, f'Rate of {CELLS_TOPIC} [Hz], in (0, 30].'),
+    ('publish_unobserved_cells', False, f'Also publish never-observed cells on {CELLS_TOPIC} (at '
+     'their prior mean, 10 m away).'),
 )
+# parameters whose change rebuilds the stereo pipeline / the ego-sphere
+PIPELINE_PARAMETERS = ('sensor', 'n_rf', 'ut_alpha', 'ut_beta', 'ut_kappa')
+SES_PARAMETERS = ('n_cells', 'bias', 'bias_weights', 'bias_means', 'bias_variances', 'seed')
+_BOOLS = ('publish_gaze', 'publish_unobserved_cells')
+_INTS = ('n_rf', 'n_cells', 'seed', 'gaze_priority', 'frames_per_fixation')
+_RANGES: dict[str, tuple[float, float, bool]] = {   # name: (lo, hi, lo exclusive)
+    'n_rf': (16, 512, False), 'n_cells': (100, 200000, False), 'seed': (0, 2 ** 31 - 1, False),
+    'ucb_alpha': (0.0, math.inf, False), 'ut_alpha': (0.0, 10.0, True),
+    'ut_beta': (0.0, 10.0, False), 'ut_kappa': (-3.9, 100.0, False),
+    'max_rate_hz': (0.0, 30.0, True), 'max_stamp_skew_s': (0.0, 1.0, False),
+    'gaze_priority': (0, 1000, False), 'hold_time': (0.0, 60.0, False),
+    'decision_period_s': (0.1, 600.0, False), 'frames_per_fixation': (1, 100, False),
+    'min_z_m': (-10.0, 10.0, False), 'cells_rate_hz': (0.0, 30.0, True),
+    'azimuth_limit_deg': (0.0, 180.0, True),
+}
+_CHOICES = {'sensor': SENSORS, 'bias': BIAS_NAMES, 'acquisition': ACQUISITIONS}
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name, or None if it is."""
-    if name == 'publish_rate_hz' and not 0.0 < value <= 100.0:
-        return f'publish_rate_hz must be in (0, 100], got {value}'
-    if name == 'frame_id' and not value:
-        return 'frame_id must not be empty'
+    if name in _BOOLS:
+        return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
+    if name in _CHOICES:
+        return None if value in _CHOICES[name] else (
+            f'{name} must be one of {", ".join(_CHOICES[name])}, got {value!r}')
+    if name == 'ego_frame':
+        return None if isinstance(value, str) and value.strip('/') else \
+            'ego_frame must be a non-empty frame id'
+    if name in ('bias_weights', 'bias_means', 'bias_variances', 'fixation_distance_m',
+                'elevation_limits_deg'):
+        values = list(value) if isinstance(value, (list, tuple)) else None
+        if not values or not all(_is_number(v) and math.isfinite(v) for v in values):
+            return f'{name} must be a non-empty list of finite numbers, got {value!r}'
+        if name == 'bias_weights' and (min(values) < 0 or sum(values) <= 0):
+            return 'bias_weights must be >= 0 with a positive sum'
+        if name in ('bias_means', 'bias_variances') and len(values) % 3:
+            return f'{name} needs 3 numbers per component, got {len(values)}'
+        if name == 'bias_variances' and min(values) <= 0:
+            return 'bias_variances must be > 0'
+        if name == 'elevation_limits_deg' and not (len(values) == 2
+                                                   and -90.0 <= values[0] < values[1] <= 90.0):
+            return 'elevation_limits_deg must be [min, max] with -90 <= min < max <= 90'
+        if name == 'fixation_distance_m' and not (len(values) == 2
+                                                  and 0.15 <= values[0] < values[1] <= 10.0):
+            return 'fixation_distance_m must be [min, max] with 0.15 <= min < max <= 10'
+        return None
+    if not _is_number(value):
+        return f'{name} must be a number, got {value!r}'
+    if name in _INTS and not float(value).is_integer():
+        return f'{name} must be an integer, got {value}'
+    if name in _RANGES:
+        lo, hi, open_lo = _RANGES[name]
+        ok = not math.isnan(value) and (lo < value if open_lo else lo <= value) and value <= hi
+        if name != 'ucb_alpha':
+            ok = ok and math.isfinite(value)
+        if not ok:
+            return f'{name} must be in {"(" if open_lo else "["}{lo:g}, {hi:g}], got {value}'
     return None
+
+
+def check_all(values: dict[str, Any]) -> list[str]:
+    """Problems of the parameters taken together (the user GMM's sizes, the UT's lambda)."""
+    problems = []
+    m = len(values['bias_weights'])
+    if len(values['bias_means']) != 3 * m or len(values['bias_variances']) != 3 * m:
+        problems.append(f'bias_means and bias_variances need 3 x {m} numbers for {m} weights')
+    try:
+        UTParams(float(values['ut_alpha']), float(values['ut_beta']), float(values['ut_kappa']))
+    except ValueError as exc:
+        problems.append(str(exc))
+    return problems
+
+
+def user_gmm(values: dict[str, Any]) -> GMM:
+    """The 'user' bias GMM from the bias_* parameters."""
+    m = len(values['bias_weights'])
+    return GMM.create(values['bias_weights'], np.reshape(values['bias_means'], (m, 3)),
+                      np.reshape(values['bias_variances'], (m, 3)))
 
 
 def image_problem(msg: Any) -> str | None:
@@ -51,45 +226,428 @@ def image_problem(msg: Any) -> str | None:
     return None
 
 
+def intrinsics(msg: Any) -> np.ndarray | None:
+    """K (3x3) of a CameraInfo, or None if it is unusable (zero focal length, NaN, wrong size)."""
+    k = np.asarray(list(msg.k), np.float64)
+    if k.size != 9 or not np.all(np.isfinite(k)) or k[0] <= 0 or k[4] <= 0:
+        return None
+    return k.reshape(3, 3)
+
+
+def stamp_seconds(stamp: Any) -> float:
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
+def pack_rgb(rgb: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8 colours as float32 whose bits are 0x00RRGGBB (PCL's packed rgb)."""
+    rgb = np.asarray(rgb, np.uint8)
+    packed = ((rgb[:, 0].astype(np.uint32) << 16) | (rgb[:, 1].astype(np.uint32) << 8)
+              | rgb[:, 2].astype(np.uint32))
+    return packed.view(np.float32)
+
+
+def points_array(frame: StereoFrame, info: np.ndarray) -> np.ndarray:
+    """The /stereo/points structured array of a frame (left optical frame)."""
+    out = np.empty(frame.means.shape[0], POINT_DTYPE)
+    for i, axis in enumerate('xyz'):
+        out[axis] = frame.means[:, i]
+    out['rgb'] = pack_rgb(frame.colors)
+    for name, (a, b) in (('cxx', (0, 0)), ('cxy', (0, 1)), ('cxz', (0, 2)), ('cyy', (1, 1)),
+                         ('cyz', (1, 2)), ('czz', (2, 2))):
+        out[name] = frame.covs[:, a, b]
+    out['information'] = info
+    return out
+
+
+def cells_array(ses: SensoryEgoSphere, observed_only: bool) -> np.ndarray:
+    """The /ses/cells structured array (ego frame)."""
+    idx = np.nonzero(ses.n_obs > 0)[0] if observed_only else np.arange(ses.n_cells)
+    out = np.empty(idx.size, CELL_DTYPE)
+    mean = ses.mean[idx]
+    for i, axis in enumerate('xyz'):
+        out[axis] = mean[:, i]
+    out['information'] = information_from_precision(ses.info[idx])
+    out['sigma_r'] = reward_statistics(mean, ses.cov[idx])[1]
+    out['observations'] = ses.n_obs[idx]
+    return out
+
+
+@dataclass
+class Pair:
+    """A left and a right image with the same stamp."""
+
+    left: Any
+    right: Any
+    stamp: float
+
+
 class StereoSesNode(Node):
-    """Receives the stereo pair and publishes the (for now empty) Sensory Ego-Sphere cells."""
+    """Stereo pairs -> UT points -> the Sensory Ego-Sphere -> next fixation."""
 
-    def __init__(self) -> None:
-        super().__init__('stereo_ses')
-        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+    def __init__(self, **node_kwargs: Any) -> None:
+        super().__init__('stereo_ses', **node_kwargs)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_all,
                                      on_change=self._on_parameters_changed)
+        self._lock = threading.Lock()
+        self._ses_lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._stop = threading.Event()
+        self._unpaired: dict[str, list[Any]] = {e: [] for e in EYES}   # waiting, oldest first
+        self._pending: Pair | None = None            # newest complete pair, not processed yet
+        self._k: dict[str, np.ndarray] = {}
+        self._info_size: dict[str, tuple[int, int]] = {}
+        self._in_saccade = False
+        self._settled_at = -math.inf                  # stamp of the last saccade's end
+        self._awaiting_saccade_until = -math.inf      # monotonic deadline after a command
+        self._frames_since_settle = 0
+        self._last_command = -math.inf
+        self._pipeline: StereoPipeline | None = None
+        self._pipeline_dirty = False
+        self._ses = self._new_ses()
+        self._ses_dirty = False
+        self._refused: set[int] = set()   # cells not to choose: refused, or fixating gave nothing
+        self._fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
+        self._warned: dict[str, float] = {}
+        # counters (read by tests and the periodic log)
+        self.pairs_received = 0
+        self.images_unpaired = 0          # dropped: no partner with a matching stamp
+        self.pairs_processed = 0          # fused, skipped or suppressed
+        self.pairs_dropped = 0            # replaced by a newer pair before processing
+        self.frames_fused = 0
+        self.frames_skipped = 0
+        self.frames_in_saccade = 0
+        self.gaze_commands = 0
+        self.last_report = None
+        self.last_decision = None
+        self.processing_s: list[float] = []
 
-        self._counts = {eye: 0 for eye in IMAGE_TOPICS}
+        self._tf = TransformBuffer()
+        self._tf_listener = TransformListener(self._tf, self)
+        self._points_pub = self.create_publisher(PointCloud2, POINTS_TOPIC, 10)
         self._cells_pub = self.create_publisher(PointCloud2, CELLS_TOPIC, 10)
-        for eye, topic in IMAGE_TOPICS.items():
+        self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
+        for eye in EYES:
             self.create_subscription(
-                Image, topic, guarded(self, f'{topic}: failed on an image',
-                                      lambda msg, eye=eye: self._on_image(eye, msg)),
+                Image, IMAGE_TOPICS[eye],
+                guarded(self, f'{IMAGE_TOPICS[eye]}: failed on an image',
+                        lambda msg, eye=eye: self._on_image(eye, msg)),
                 qos_profile_sensor_data)
-        self._timer = self.create_timer(1.0 / self._p['publish_rate_hz'], self._on_timer)
+            self.create_subscription(
+                CameraInfo, INFO_TOPICS[eye],
+                guarded(self, f'{INFO_TOPICS[eye]}: failed on a camera_info',
+                        lambda msg, eye=eye: self._on_camera_info(eye, msg)),
+                qos_profile_sensor_data)
+        self.create_subscription(
+            GazeState, GAZE_STATE_TOPIC,
+            guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
+        self._cells_timer = self.create_timer(1.0 / self._p['cells_rate_hz'], self._on_cells_timer)
+        self._worker = threading.Thread(target=self._work, name='stereo_ses_worker', daemon=True)
+        self._worker.start()
+        p = self._p
         self.get_logger().info(
-            f'placeholder: checking {IMAGE_TOPICS["left"]} and {IMAGE_TOPICS["right"]}, '
-            f'publishing empty SES cells on {CELLS_TOPIC} at {self._p["publish_rate_hz"]} Hz')
+            f'stereo on {IMAGE_TOPICS["left"]} + {IMAGE_TOPICS["right"]} with a {p["sensor"]} '
+            f'sensor of {p["n_rf"]}x{p["n_rf"]} RFs at most {p["max_rate_hz"]:g} Hz -> '
+            f'{POINTS_TOPIC}; ego-sphere of {p["n_cells"]} cells ({p["bias"]} bias) in '
+            f'{p["ego_frame"]!r} -> {CELLS_TOPIC}; gaze {p["acquisition"]}'
+            f'{" alpha " + str(p["ucb_alpha"]) if p["acquisition"] == "ucb" else ""} '
+            f'{"on" if p["publish_gaze"] else "off"} (priority {p["gaze_priority"]})')
+
+    # --- set-up ---------------------------------------------------------------------------------
+
+    def _new_ses(self) -> SensoryEgoSphere:
+        p = self._p
+        bias: GMM | str = user_gmm(p) if p['bias'] == 'user' else p['bias']
+        return SensoryEgoSphere(int(p['n_cells']), bias, seed=int(p['seed']))
+
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        with self._lock:
+            if any(n in changed for n in PIPELINE_PARAMETERS):
+                self._pipeline_dirty = True
+            if any(n in changed for n in SES_PARAMETERS):
+                self._ses_dirty = True
+        if 'cells_rate_hz' in changed:
+            self._cells_timer = replace_timer(self, self._cells_timer,
+                                              1.0 / changed['cells_rate_hz'], self._on_cells_timer)
+
+    def _warn(self, kind: str, text: str) -> None:
+        """A warning at most once every WARN_PERIOD_S per kind of problem."""
+        now = time.monotonic()
+        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
+            self._warned[kind] = now
+            self.get_logger().warning(text)
+
+    # --- inputs (executor thread: store only) ---------------------------------------------------
+
+    def _on_camera_info(self, eye: str, msg: Any) -> None:
+        k = intrinsics(msg)
+        if k is None:
+            self._warn(f'info_{eye}', f'{INFO_TOPICS[eye]}: unusable K {list(msg.k)}: ignored')
+            return
+        with self._lock:
+            self._k[eye] = k
+            self._info_size[eye] = (int(msg.width), int(msg.height))
+
+    def _on_gaze_state(self, msg: Any) -> None:
+        with self._lock:
+            saccade = bool(msg.in_saccade)
+            if saccade:
+                self._awaiting_saccade_until = -math.inf
+            if self._in_saccade and not saccade:
+                self._frames_since_settle = 0        # a saccade just settled
+                # pairs stamped before this were taken before or during the movement: the
+                # latest-only tf would give them the new poses
+                self._settled_at = stamp_seconds(msg.header.stamp)
+            self._in_saccade = saccade
+        if msg.status in (GazeState.STATUS_REJECTED_NAN, GazeState.STATUS_REJECTED_UNKNOWN_FRAME,
+                          GazeState.STATUS_REJECTED_UNREACHABLE,
+                          GazeState.STATUS_REJECTED_INVALID) and self.last_decision is not None \
+                and time.monotonic() - self._last_command < SACCADE_START_TIMEOUT_S:
+            # the status of the command just sent (the controller answers at once)
+            with self._lock:        # not chosen again (until the ego-sphere is rebuilt)
+                self._refused.add(self.last_decision.cell)
+            self._warn('gaze_status', f'{GAZE_STATE_TOPIC}: a gaze command was refused: '
+                                      f'{msg.status_message}')
 
     def _on_image(self, eye: str, msg: Any) -> None:
         problem = image_problem(msg)
         if problem:
-            self.get_logger().warning(f'{IMAGE_TOPICS[eye]}: dropped image: {problem}',
-                                      throttle_duration_sec=5.0)
+            self._warn(f'image_{eye}', f'{IMAGE_TOPICS[eye]}: dropped image: {problem}')
             return
-        self._counts[eye] += 1
+        other_eye = 'right' if eye == 'left' else 'left'
+        t = stamp_seconds(msg.header.stamp)
+        skew = self._p['max_stamp_skew_s']
+        with self._lock:
+            mine, others = self._unpaired[eye], self._unpaired[other_eye]
+            match = next((m for m in others if abs(stamp_seconds(m.header.stamp) - t) <= skew),
+                         None)
+            if match is None:
+                # wait for the partner (the eyes' images may arrive interleaved); the oldest
+                # waiting image goes when too many wait: its partner was lost
+                mine.append(msg)
+                dropped = max(len(mine) - UNPAIRED_KEPT, 0)
+                del mine[:dropped]
+            else:
+                # pair; older images of either eye can no longer win (newest pair wins)
+                t_other = stamp_seconds(match.header.stamp)
+                dropped = sum(stamp_seconds(m.header.stamp) < t_other for m in others)
+                dropped += len(mine)
+                others[:] = [m for m in others if stamp_seconds(m.header.stamp) > t_other]
+                mine.clear()
+                pair = Pair(msg if eye == 'left' else match, match if eye == 'left' else msg, t)
+                if self._pending is not None:
+                    self.pairs_dropped += 1       # the worker is busy: newest pair wins
+                self._pending = pair
+                self.pairs_received += 1
+                self._wake.notify()
+            self.images_unpaired += dropped
+        if dropped:
+            self._warn('skew', f'dropped {dropped} image(s) without a partner (left/right stamps '
+                               f'differ by more than max_stamp_skew_s {skew:g} s); '
+                               f'{self.images_unpaired} so far')
 
-    def _on_timer(self) -> None:
-        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._p['frame_id'])
-        self._cells_pub.publish(array_to_pointcloud2(np.zeros(0, dtype=CELL_DTYPE), header))
-        self.get_logger().debug(f'heartbeat: {self._counts["left"]} left and '
-                                f'{self._counts["right"]} right images since the last one')
-        self._counts = {eye: 0 for eye in IMAGE_TOPICS}
+    # --- the worker -----------------------------------------------------------------------------
 
-    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        if 'publish_rate_hz' in changed:
-            self._timer = replace_timer(self, self._timer, 1.0 / changed['publish_rate_hz'],
-                                        self._on_timer)
+    def _work(self) -> None:
+        last = -math.inf
+        while not self._stop.is_set():
+            with self._lock:
+                while self._pending is None and not self._stop.is_set():
+                    self._wake.wait(0.2)
+                if self._stop.is_set():
+                    return
+            wait = last + 1.0 / self._p['max_rate_hz'] - time.monotonic()
+            if wait > 0 and self._stop.wait(wait):
+                return
+            with self._lock:
+                pair, self._pending = self._pending, None
+            if pair is None:
+                continue
+            last = time.monotonic()
+            try:
+                self._process(pair)
+            except Exception as exc:  # one bad pair never stops the worker
+                self.frames_skipped += 1
+                self._warn('process', f'stereo pair failed: {type(exc).__name__}: {exc}')
+            self.pairs_processed += 1
+
+    def _skip(self, kind: str, text: str) -> None:
+        self.frames_skipped += 1
+        self._warn(kind, f'skipped a stereo pair: {text}')
+
+    def _prepare(self, pair: Pair) -> tuple[np.ndarray, np.ndarray, StereoRig, np.ndarray] | None:
+        """(left, right, rig in the left optical frame, ego <- left) or None (skipped, logged)."""
+        left, right = image_to_numpy(pair.left), image_to_numpy(pair.right)
+        if left.shape != right.shape:
+            self._skip('size', f'left image {left.shape[1]}x{left.shape[0]} and right '
+                               f'{right.shape[1]}x{right.shape[0]} differ')
+            return None
+        # the pipeline's colours and grey conversion expect RGB
+        left = left[..., ::-1] if pair.left.encoding == 'bgr8' else left
+        right = right[..., ::-1] if pair.right.encoding == 'bgr8' else right
+        with self._lock:
+            k = dict(self._k)
+            sizes = dict(self._info_size)
+        missing = [e for e in EYES if e not in k]
+        if missing:
+            self._skip('info', f'waiting for {" and ".join(INFO_TOPICS[e] for e in missing)}')
+            return None
+        h, w = left.shape[:2]
+        for eye in EYES:
+            if sizes[eye] not in ((w, h), (0, 0)):
+                self._skip('info_size', f'{INFO_TOPICS[eye]} is for {sizes[eye][0]}x'
+                                        f'{sizes[eye][1]} images, got {w}x{h}')
+                return None
+        frames = {e: getattr(pair, e).header.frame_id for e in EYES}
+        if not all(frames.values()):
+            self._skip('frame_id', 'an image has no frame_id: no camera pose')
+            return None
+        try:
+            ego_left = self._tf.lookup_transform(self._p['ego_frame'], frames['left'])
+            left_right = self._tf.lookup_transform(frames['left'], frames['right'])
+            rig = StereoRig.create(k['left'], k['right'], np.eye(4), left_right)
+        except (LookupError, ValueError) as exc:
+            self._skip('tf', f'no usable camera poses: {exc}')
+            return None
+        return np.ascontiguousarray(left), np.ascontiguousarray(right), rig, ego_left
+
+    def _pipeline_for(self, width: int, height: int) -> StereoPipeline:
+        with self._lock:
+            dirty, self._pipeline_dirty = self._pipeline_dirty, False
+        pipe = self._pipeline
+        if dirty or pipe is None or (pipe.width, pipe.height) != (width, height):
+            p = self._p
+            n = int(p['n_rf'])
+            pipe = StereoPipeline(width, height, p['sensor'], (n, n),
+                                  ut=UTParams(float(p['ut_alpha']), float(p['ut_beta']),
+                                              float(p['ut_kappa'])))
+            self._pipeline = pipe
+            self.get_logger().info(f'stereo pipeline: {p["sensor"]} sensor, {n}x{n} RFs on '
+                                   f'{width}x{height} images')
+        return pipe
+
+    def _process(self, pair: Pair) -> None:
+        t0 = time.monotonic()
+        with self._lock:
+            in_saccade = self._in_saccade or pair.stamp < self._settled_at
+            if self._ses_dirty:
+                self._ses_dirty = False
+                rebuild = True
+            else:
+                rebuild = False
+        if rebuild:
+            ses = self._new_ses()
+            with self._ses_lock:
+                self._ses = ses
+            with self._lock:
+                self._refused.clear()
+                self._fixated = None
+            self.get_logger().info(f'ego-sphere rebuilt: {self._ses.n_cells} cells, '
+                                   f'{self._p["bias"]} bias (memory reset)')
+        if in_saccade:                 # saccadic suppression: the image is blurred, poses move
+            self.frames_in_saccade += 1
+            return
+        prepared = self._prepare(pair)
+        if prepared is None:
+            return
+        left, right, rig, ego_left = prepared
+        pipe = self._pipeline_for(left.shape[1], left.shape[0])
+        frame = pipe.process(left, right, rig)
+        if frame.means.shape[0] == 0:
+            self._skip('empty', f'no valid correspondences ({frame.rejected})')
+            return
+        info = information(frame.covs)                                  # Eq. 3.45
+        header = Header(stamp=pair.left.header.stamp, frame_id=pair.left.header.frame_id)
+        self._points_pub.publish(array_to_pointcloud2(points_array(frame, info), header))
+        with self._ses_lock:
+            report = self._ses.fuse(frame.means, frame.covs, ego_left)
+        self.last_report = report
+        self.frames_fused += 1
+        bad = {k: v for k, v in {**frame.rejected, **report.rejected}.items() if v}
+        if bad:
+            self.get_logger().debug(f'frame: {report.summary()}; stereo rejected {bad}')
+        with self._lock:
+            if time.monotonic() >= self._awaiting_saccade_until:
+                self._frames_since_settle += 1
+            check = (self._fixated is not None
+                     and self._frames_since_settle >= self._p['frames_per_fixation'])
+            if check:
+                cell, seen = self._fixated
+                self._fixated = None
+                if self._ses.n_obs[cell] == seen:
+                    # the fixation gave its cell no observation (the eyes sit in front of ego,
+                    # so the fixated point may fall in a neighbouring cell): without this, an
+                    # unobserved cell keeps its prior and would be chosen for ever
+                    self._refused.add(cell)
+        self.processing_s.append(time.monotonic() - t0)
+        del self.processing_s[:-50]
+        if len(self.processing_s) == 50 and self.frames_fused % 50 == 0:
+            self.get_logger().info(
+                f'{self.frames_fused} frames fused; {1e3 * np.median(self.processing_s):.0f} ms '
+                f'per pair (median); {self.pairs_dropped} pairs dropped (newest wins), '
+                f'{self.frames_in_saccade} in saccades, {self.frames_skipped} skipped; last: '
+                f'{report.summary()}')
+        self._decide()
+
+    # --- decision and outputs -------------------------------------------------------------------
+
+    def _decide(self) -> None:
+        p = self._p
+        if not p['publish_gaze']:
+            return
+        now = time.monotonic()
+        with self._lock:
+            ready = (not self._in_saccade and now >= self._awaiting_saccade_until
+                     and self._frames_since_settle >= p['frames_per_fixation']
+                     and now - self._last_command >= p['decision_period_s'])
+        if not ready:
+            return
+        ses = self._ses
+        el = np.radians(p['elevation_limits_deg'])
+        candidates = (ses.mean[:, 2] >= p['min_z_m']) & reachable_cells(
+            ses.directions, math.radians(p['azimuth_limit_deg']), (el[0], el[1]))
+        with self._lock:
+            refused = list(self._refused)
+        candidates[refused] = False
+        if not np.any(candidates):
+            self._warn('decision', 'no reachable cell above min_z_m: no fixation')
+            return
+        decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
+                                   candidates=candidates)
+        dmin, dmax = p['fixation_distance_m']
+        point = decision.fixation
+        dist = float(np.linalg.norm(point))
+        point = point * (min(max(dist, dmin), dmax) / max(dist, 1e-9))
+        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT, motion=GazeCommand.MOTION_SACCADE,
+                          source=SOURCE, priority=int(p['gaze_priority']),
+                          hold_time=float(p['hold_time']))
+        cmd.header.frame_id = p['ego_frame']
+        cmd.header.stamp = self.get_clock().now().to_msg()
+        cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = (float(v)
+                                                                            for v in point)
+        self._gaze_pub.publish(cmd)
+        with self._lock:
+            self._last_command = now
+            self._awaiting_saccade_until = now + SACCADE_START_TIMEOUT_S
+            self._frames_since_settle = 0
+            self._fixated = (decision.cell, int(ses.n_obs[decision.cell]))
+        self.gaze_commands += 1
+        self.last_decision = decision
+        self.get_logger().debug(f'fixation: cell {decision.cell} at {np.round(point, 3)} '
+                                f'(score {decision.score:.4g})')
+
+    def _on_cells_timer(self) -> None:
+        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._p['ego_frame'])
+        with self._ses_lock:        # not a torn read while the worker fuses
+            cells = cells_array(self._ses, not self._p['publish_unobserved_cells'])
+        self._cells_pub.publish(array_to_pointcloud2(cells, header))
+
+    def destroy_node(self) -> Any:
+        self._stop.set()
+        with self._lock:
+            self._wake.notify_all()
+        if self._worker.is_alive() and threading.current_thread() is not self._worker:
+            self._worker.join(timeout=5.0)
+        return super().destroy_node()
 
 
 main = main_for(StereoSesNode)

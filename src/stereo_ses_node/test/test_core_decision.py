@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from stereo_ses_node.core.decision import (acquisition_scores, choose_fixation,
-                                           reward_statistics)
+                                           reachable_cells, reward_statistics)
 
 
 def cells():
@@ -53,3 +53,11 @@ def test_bad_inputs_rejected():
     with pytest.raises(ValueError, match='no candidate'):
         choose_fixation(means, covs, candidates=np.zeros(4, bool))
     assert choose_fixation(means, covs, 'ucb', 0.0, candidates=np.array([1, 3])).cell == 1
+
+
+def test_reachable_cells_follow_azimuth_and_elevation_limits():
+    az = np.radians([0.0, 70.0, -85.0, 180.0, 0.0, 0.0])
+    el = np.radians([0.0, 10.0, 0.0, 0.0, 70.0, -45.0])
+    d = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
+    ok = reachable_cells(d, np.radians(80.0), (np.radians(-50.0), np.radians(60.0)))
+    assert ok.tolist() == [True, True, False, False, False, True]

@@ -149,8 +149,10 @@ def test_table_transform_equals_sigma_point_array_path():
     rig = rig_fixating(1.5)
     ul = s.centers
     ur = ul - [12.0, 0.5]
+    ur[::7, 0] += 250.0                                     # diverging rays: invalid
     il, ir = np.arange(s.n_rf), s.rf_index(ur[:, 0], ur[:, 1])
     ref = unscented_transform(rig, table.sigma_points(ul, ur, il, ir), table.wm, table.wc)
     got = table.transform(rig, ul, ur, il, ir)
+    assert 0 < np.sum(got[2]) < got[2].size               # some rows invalid (behind a camera)
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15, equal_nan=True)

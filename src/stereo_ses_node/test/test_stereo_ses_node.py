@@ -1,10 +1,12 @@
-"""The stereo_ses node: declared parameters, config/stereo_ses.yaml and the checks of its input."""
+"""The stereo_ses node: declared parameters, config/stereo_ses.yaml, input checks, cloud layouts."""
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from stereo_ses_node import node
+from stereo_ses_node.core.ses import SensoryEgoSphere
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
 from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
 
@@ -13,9 +15,28 @@ CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'stereo_ses.yaml'
 
 def test_parameter_table_and_config() -> None:
     check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'stereo_ses')
+    defaults = {name: default for name, default, _ in node.PARAMETERS}
+    assert node.check_all(defaults) == []
 
 
-def test_images_are_checked() -> None:
+def test_parameter_checks() -> None:
+    check = node.check_parameter
+    assert check('ucb_alpha', 0.0) is None and check('ucb_alpha', math.inf) is None
+    assert check('ucb_alpha', -1.0) and check('ucb_alpha', math.nan)
+    assert check('sensor', 'fisheye') and check('acquisition', 'thompson')
+    assert check('bias', 'user') is None and check('bias', 'sideways')
+    assert check('n_rf', 200.5) and check('n_rf', 8)
+    assert check('bias_means', [0.0, 1.0]) and check('bias_variances', [0.5, 0.5, 0.0])
+    assert check('fixation_distance_m', [0.1, 5.0]) and check('fixation_distance_m', [2.0, 1.0])
+    values = {name: default for name, default, _ in node.PARAMETERS}
+    assert node.check_all({**values, 'bias_weights': [0.5, 0.5]})   # means for one component
+    assert check('ut_kappa', -4.0) and check('ut_alpha', 0.0)   # L + lambda must stay > 0
+    gmm = node.user_gmm({**values, 'bias_weights': [1.0, 3.0], 'bias_means': [0, 0, 1, 1, 0, 0],
+                         'bias_variances': [0.1] * 6})
+    assert np.allclose(gmm.weights, [0.25, 0.75]) and np.allclose(gmm.means[1], [1, 0, 0])
+
+
+def test_images_and_camera_info_are_checked() -> None:
     msg = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
     assert node.image_problem(msg) is None
     msg.encoding = 'bgr8'
@@ -24,14 +45,32 @@ def test_images_are_checked() -> None:
     assert 'encoding' in node.image_problem(mono)
     msg.height = 100  # more rows than the data holds
     assert 'bytes' in node.image_problem(msg)
+    info = node.CameraInfo(width=64, height=48)
+    info.k = [50.0, 0.0, 32.0, 0.0, 50.0, 24.0, 0.0, 0.0, 1.0]
+    assert np.allclose(node.intrinsics(info)[0], [50.0, 0.0, 32.0])
+    info.k = [0.0] * 9
+    assert node.intrinsics(info) is None
 
 
-def test_empty_cells_cloud_has_the_documented_fields() -> None:
+def test_cloud_layouts() -> None:
     cloud = array_to_pointcloud2(np.zeros(0, dtype=node.CELL_DTYPE))
-    assert [f.name for f in cloud.fields] == ['x', 'y', 'z', 'information']
-    assert cloud.width == 0 and cloud.point_step == 16
+    assert [f.name for f in cloud.fields] == ['x', 'y', 'z', 'information', 'sigma_r',
+                                              'observations']
+    assert cloud.width == 0 and cloud.point_step == 24
+    points = array_to_pointcloud2(np.zeros(0, dtype=node.POINT_DTYPE))
+    assert [f.name for f in points.fields] == ['x', 'y', 'z', 'rgb', 'cxx', 'cxy', 'cxz', 'cyy',
+                                               'cyz', 'czz', 'information']
+    packed = node.pack_rgb(np.array([[255, 128, 1]], np.uint8))
+    assert packed.view(np.uint32)[0] == 0xFF8001
+    ses = SensoryEgoSphere(500, seed=1)
+    assert node.cells_array(ses, observed_only=True).size == 0
+    cells = node.cells_array(ses, observed_only=False)
+    # prior cells: 10 m away, Sigma = 100 I: information -log(1e6), sigma_r 10 m
+    assert cells.size == 500 and np.allclose(cells['information'], -np.log(1e6), atol=1e-4)
+    assert np.allclose(cells['sigma_r'], 10.0, rtol=1e-5)
 
 
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
     with node_under_test(node.StereoSesNode) as ros_node:
-        check_node_parameters(ros_node, node.PARAMETERS, 'publish_rate_hz', 0.0)
+        check_node_parameters(ros_node, node.PARAMETERS, 'acquisition', 'greedy')
+        check_node_parameters(ros_node, node.PARAMETERS, 'max_rate_hz', 0.0)

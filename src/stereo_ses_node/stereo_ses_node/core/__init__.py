@@ -5,6 +5,7 @@
 - ut: Unscented Transform (Eqs. 3.9-3.18), with linearization and Monte Carlo references.
 - stereo: SGBM on each sensor's view -> correspondences -> UT points.
 - ses: the randomized Sensory Ego-Sphere (Eqs. 3.19-3.35), exact fast association.
-- decision: reward statistics and UCB / PI / EI gaze selection (Eqs. 3.36-3.43).
+- decision: reward statistics, UCB / PI / EI gaze selection, reachable cells (Eqs. 3.36-3.43).
+- information: -log|Sigma| and the search metrics of section 3.4 (Eqs. 3.45-3.56).
 - linalg3, synthetic: batched 3x3 inverse; synthetic textured-plane stereo pairs.
 """

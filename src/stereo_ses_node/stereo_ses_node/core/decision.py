@@ -56,6 +56,19 @@ def acquisition_scores(mu_r: np.ndarray, sigma_r: np.ndarray, kind: str = 'ucb',
     return gain * ndtr(u) + sigma_r * _INV_SQRT_2PI * np.exp(-0.5 * u * u)
 
 
+def reachable_cells(directions: np.ndarray, azimuth_limit: float,
+                    elevation_limits: tuple[float, float]) -> np.ndarray:
+    """Cells the head can fixate (the kinematic constraints of Fig. 3.10), (N,) bool.
+
+    directions: (N, 3) unit vectors in the ego frame (x forward, y left, z up); a cell is
+    reachable when |azimuth| <= azimuth_limit and elevation lies in elevation_limits [rad].
+    """
+    d = np.asarray(directions, np.float64)
+    az = np.arctan2(d[:, 1], d[:, 0])
+    el = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
+    return (np.abs(az) <= azimuth_limit) & (el >= elevation_limits[0]) & (el <= elevation_limits[1])
+
+
 @dataclass(frozen=True)
 class Decision:
     """The chosen cell, its fixation point (ego frame) and its score."""

@@ -231,16 +231,22 @@ class FusionReport:
                 f'cells; rejected: {bad}')
 
 
-def valid_covariances(cov: np.ndarray, rel_tol: float = 1e-6) -> np.ndarray:
-    """Finite, symmetric, positive-definite 3x3 matrices (Sylvester's criterion), (n,) bool."""
+def valid_covariances(cov: np.ndarray, rel_tol: float = 1e-6,
+                      return_inverse: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Finite, symmetric, positive-definite 3x3 matrices (Sylvester's criterion), (n,) bool.
+
+    With return_inverse, also the inverses (n, 3, 3) (meaningful for the valid rows only): the
+    determinant for the test costs most of an inverse anyway.
+    """
     fin = np.all(np.isfinite(cov.reshape(cov.shape[0], -1)), axis=1)
     c = np.where(fin[:, None, None], cov, np.eye(3))
     scale = np.abs(c).max(axis=(1, 2)) + 1e-300
     sym = np.all(np.abs(c - c.transpose(0, 2, 1)) <= rel_tol * scale[:, None, None], axis=(1, 2))
     m1 = c[:, 0, 0]
     m2 = c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] * c[:, 1, 0]
-    m3 = det_inv3(c)[0]
-    return fin & sym & (m1 > 0) & (m2 > 0) & (m3 > 0)
+    m3, inv = det_inv3(c)
+    ok = fin & sym & (m1 > 0) & (m2 > 0) & (m3 > 0)
+    return (ok, inv) if return_inverse else ok
 
 
 class SensoryEgoSphere:
@@ -274,6 +280,9 @@ class SensoryEgoSphere:
         dirs, ok = unit_rows(np.asarray(points, np.float64))
         if not np.all(ok):
             raise ValueError('associate: points must be finite and away from the ego origin')
+        return self._associate_directions(dirs, method)
+
+    def _associate_directions(self, dirs: np.ndarray, method: str | None = None) -> np.ndarray:
         method = method or self.association
         if method == 'grid':
             return self.lookup.query(dirs)
@@ -305,18 +314,19 @@ class SensoryEgoSphere:
             mu = mu @ r.T + t[:3, 3]                                   # Eq. 3.26
             cov = r @ cov @ r.T                                        # Eq. 3.27
         fin = np.all(np.isfinite(mu), axis=1)
-        good_cov = valid_covariances(cov)
-        _, nonzero = unit_rows(np.where(fin[:, None], mu, 0.0))
+        good_cov, inv = valid_covariances(cov, return_inverse=True)
+        dirs, nonzero = unit_rows(np.where(fin[:, None], mu, 0.0))
         report.rejected = {'non-finite mean': int(np.sum(~fin)),
                            'bad covariance': int(np.sum(fin & ~good_cov)),
                            'at ego origin': int(np.sum(fin & good_cov & ~nonzero))}
         keep = fin & good_cov & nonzero
-        mu, cov = mu[keep], cov[keep]
+        all_kept = bool(keep.all())          # the usual case: no copies
+        mu = mu if all_kept else mu[keep]
         report.fused = int(mu.shape[0])
         if report.fused == 0:
             return report
-        cell = self.associate(mu)
-        lam = det_inv3(cov)[1]                                         # Sigma_z'^-1
+        cell = self._associate_directions(dirs if all_kept else dirs[keep])
+        lam = inv if all_kept else inv[keep]                           # Sigma_z'^-1
         eta = np.einsum('nab,nb->na', lam, mu)
         n = self.n_cells
         d_info = np.stack([np.bincount(cell, lam.reshape(-1, 9)[:, k], n) for k in range(9)],

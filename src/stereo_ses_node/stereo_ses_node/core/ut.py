@@ -162,12 +162,13 @@ def _ut_moments(comp: list[np.ndarray], ok: np.ndarray, wm: np.ndarray, wc: np.n
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eqs. 3.17-3.18 from the triangulated sigma points' components, each (N, 2L+1)."""
     valid = np.all(ok, axis=1)
-    mean = np.stack([c @ wm for c in comp], axis=-1)                 # Eq. 3.17
-    dev = [c - m[:, None] for c, m in zip(comp, mean.T)]
-    cov = np.empty((ok.shape[0], 3, 3))
-    for a in range(3):                                               # Eq. 3.18
-        for b in range(a, 3):
-            cov[:, a, b] = cov[:, b, a] = (dev[a] * dev[b]) @ wc
+    with np.errstate(invalid='ignore', over='ignore'):   # invalid rows are NaN'd below
+        mean = np.stack([c @ wm for c in comp], axis=-1)             # Eq. 3.17
+        dev = [c - m[:, None] for c, m in zip(comp, mean.T)]
+        cov = np.empty((ok.shape[0], 3, 3))
+        for a in range(3):                                           # Eq. 3.18
+            for b in range(a, 3):
+                cov[:, a, b] = cov[:, b, a] = (dev[a] * dev[b]) @ wc
     mean[~valid] = np.nan
     cov[~valid] = np.nan
     return mean, cov, valid

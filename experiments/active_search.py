@@ -1,0 +1,400 @@
+#!/usr/bin/env python3
+"""Thesis Figs. 3.11-3.12 and Table 3.1: active visual search for the nearest object, in-process.
+
+The simulator's visual_search scene (vizzy_sim_bridge.core.scenes: cans on stands over textured
+walls, the nearest can at 0.5-0.6 m outside the initial field of view) is compiled into MuJoCo
+and rendered with the eye cameras (640x480, 85.4 deg); no ROS. Each run:
+
+  t = 1: pan = tilt = vergence = 0 (all joints 0); then for t = 1..T (T = 50):
+    render both eyes at the current joints; the stereo pipeline (sensor's view, SGBM, UT,
+    Eqs. 3.8-3.18) in the left optical frame; fusion into the ego-sphere (N_x = 20000 cells,
+    Eqs. 3.22-3.35) with the ego <- left pose from the head's kinematics;
+    the metrics of saccade t; then the next fixation by the acquisition function (UCB / PI / EI,
+    Eqs. 3.36-3.43) among the reachable cells (|azimuth| <= 80 deg, elevation in [-50, 60] deg,
+    the kinematic constraints of Fig. 3.10) whose mean lies above the floor (ego z >= -0.7 m,
+    section 3.4.2), moved into [0.3, 8] m; the gaze IK (vizzy_sim_bridge.core.gaze.solve_fixation)
+    gives the joints, set directly (no saccade dynamics: the thesis's visual suppression blinds
+    the observer during the movement anyway). A cell the IK refuses is excluded, and so is a
+    fixated cell that got no observation from its fixation (the eyes sit 0.13 m in front of
+    ego, so the point they fixate can fall in a neighbouring cell; without this an unobserved
+    cell keeps its prior and UCB would choose it for ever).
+The 'target' bias is Table 3.1's (covariance 0.05 I about a unit direction) with the mean at
+this scene's target direction (the thesis's mean is its own scene's target direction).
+
+Rewards (Eq. 3.36) of saccade t: the action a_t is the fixated cell (a_1: the cell straight
+ahead); its reward mu_r(x^{a_t}) is taken two ways:
+  - 'true': minus the distance from ego to the first surface along the cell's direction
+    (mujoco.mj_ray, the robot's own geoms excluded): what the eyes actually looked at;
+  - 'estimated': minus the norm of the cell's fused mean after the frame at that fixation
+    (Eq. 3.38), as the thesis writes it; noisy stereo outliers make it exceed the optimum.
+mu_r(x*) (Eq. 3.48) = minus the true distance from ego to the nearest point of the nearest can
+(or stand). g_t, R_t (Eqs. 3.47, 3.51), GI_t (Eq. 3.53: mean -log|Sigma| over all cells), LI_t
+(Eq. 3.55: cells within R_NN = 0.1 m of that nearest point; before any is, the cell of its
+direction) and their per-saccade averages G/S, R/S, GI/S, LI/S (Eqs. 3.50, 3.52, 3.54, 3.56).
+Metrics use the 'true' rewards; the estimated ones are in the JSON too.
+
+Configurations: Fig. 3.11, both sensors x {UCB alpha 0, 0.01, 1, 100, inf; PI; EI}, unbiased
+memory, for each --fov (the eye cameras' horizontal field of view; default the robot's 85.4 deg,
+the thesis's "90"; the thesis also runs 135); Fig. 3.12 / Table 3.1, log-polar, UCB alpha = 100
+x {unbiased, top, down, target} at 85.4 deg (the thesis ran the biases at 135 deg).
+Repeats: --repeats seeds of the cell sampling from --first-seed (the thesis repeats 20
+simulations; rendering here is deterministic, so the cell layout is what varies); --merge pools
+the runs of earlier result files (other seeds) into the averages and keeps their other
+configurations.
+
+Writes experiments/results/active_search.json and active_search_fig311.png, _fig312.png.
+
+    nice -n 10 .venv/bin/python experiments/active_search.py [--repeats 1] [--T 50] [--only fig312]
+        [--fov 85.4 135] [--first-seed 1 --merge experiments/results/active_search.json]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ.setdefault(_var, '1')
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+for _pkg in ('stereo_ses_node', 'foveation_node', 'vizzy_sim_bridge'):
+    sys.path.insert(0, str(ROOT / 'src' / _pkg))
+
+from stereo_ses_node.core.decision import choose_fixation, reachable_cells  # noqa: E402
+from stereo_ses_node.core.information import (  # noqa: E402
+    SearchMetrics, information_from_precision, local_information)
+from stereo_ses_node.core.ses import GMM, SensoryEgoSphere  # noqa: E402
+from stereo_ses_node.core.stereo import StereoPipeline  # noqa: E402
+from stereo_ses_node.core.ut import StereoRig  # noqa: E402
+from vizzy_sim_bridge.core.camera import camera_matrix  # noqa: E402
+from vizzy_sim_bridge.core.gaze import GazeError, solve_fixation  # noqa: E402
+from vizzy_sim_bridge.core.kinematics import EGO_HEIGHT, JOINT_NAMES, camera_poses  # noqa: E402
+from vizzy_sim_bridge.core.model import ROBOT_GROUP, CameraSpec, compile_model  # noqa: E402
+from vizzy_sim_bridge.core.render import CameraRenderer  # noqa: E402
+from vizzy_sim_bridge.core.scenes import build_scene  # noqa: E402
+
+W, H, HFOV = 640, 480, 85.4
+K = camera_matrix(W, H, HFOV)
+MIN_Z = -0.7
+AZIMUTH_LIMIT = math.radians(80.0)
+ELEVATION_LIMITS = (math.radians(-50.0), math.radians(60.0))
+FIXATION_DISTANCE = (0.3, 8.0)
+R_NN = 0.1
+FOUND_RADIUS = 0.1     # a fixation is on the target when its true point is this close to it
+ALPHAS = (0.0, 0.01, 1.0, 100.0, math.inf)
+BIAS_NAMES = ('unbiased', 'top', 'down', 'target')
+T_BASE_EGO = np.eye(4)
+T_BASE_EGO[2, 3] = EGO_HEIGHT
+THESIS = {'nearest_object_found_within_saccades': 20, 'target_bias_converges_in_saccades': 2,
+          'other_biases_find_within_saccades': 10}
+
+
+@dataclass(frozen=True)
+class Config:
+    sensor: str
+    acquisition: str
+    alpha: float
+    bias: str
+    hfov: float = HFOV
+
+    @property
+    def label(self) -> str:
+        a = self.acquisition.upper() + (f' a={self.alpha:g}' if self.acquisition == 'ucb' else '')
+        fov = '' if self.hfov == HFOV else f' fov{self.hfov:g}'
+        return f'{self.sensor} {a} {self.bias}{fov}'
+
+
+class World:
+    """The visual_search scene in MuJoCo: joints -> both eye images, rays, the ground truth."""
+
+    def __init__(self, seed: int = 0, hfov: float = HFOV) -> None:
+        self.scene = build_scene('visual_search', seed)
+        self.k = camera_matrix(W, H, hfov)
+        self.model, _ = compile_model(self.scene, eye=CameraSpec(W, H, hfov))
+        self.data = mujoco.MjData(self.model)
+        jid = [mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in JOINT_NAMES]
+        self.qpos_adr = np.array([self.model.jnt_qposadr[j] for j in jid])
+        self.renderer = CameraRenderer(self.model, W, H)
+        self.cams = {e: self.renderer.camera_id(f'{e}_camera') for e in ('left', 'right')}
+        self.groups = np.ones(6, np.uint8)
+        self.groups[ROBOT_GROUP] = 0
+        self.ego_world = self._ego_world()
+        self.nearest, self.nearest_distance = self._nearest_point()
+
+    def _ego_world(self) -> np.ndarray:
+        mujoco.mj_forward(self.model, self.data)
+        sid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, 'ego')
+        return self.data.site_xpos[sid].copy()
+
+    def _nearest_point(self) -> tuple[np.ndarray, float]:
+        """The nearest point (ego frame) of any can or stand, and its distance: x* (Eq. 3.48)."""
+        best, best_d = None, math.inf
+        ego_base = T_BASE_EGO[:3, 3]
+        for o in self.scene.objects:
+            if o.kind not in ('can', 'stand') or o.radius is None:
+                continue
+            c = np.asarray(o.position) - ego_base            # ego frame (base_link axes)
+            # the nearest point of a vertical cylinder to the origin
+            horiz = np.hypot(c[0], c[1])
+            scale = max(horiz - o.radius, 0.0) / max(horiz, 1e-12)
+            z = np.clip(0.0, c[2] - o.height / 2, c[2] + o.height / 2)
+            p = np.array([c[0] * scale, c[1] * scale, z])
+            d = float(np.linalg.norm(p))
+            if d < best_d and p[2] >= MIN_Z:
+                best, best_d = p, d
+        return best, best_d
+
+    def render(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        self.data.qpos[self.qpos_adr] = q
+        mujoco.mj_forward(self.model, self.data)
+        return {e: self.renderer.render(self.data, cid)[0].copy() for e, cid in self.cams.items()}
+
+    def ray_distance(self, direction: np.ndarray) -> float:
+        """Distance from ego to the first scene surface along a unit direction (ego axes)."""
+        geom = np.zeros(1, np.int32)
+        d = mujoco.mj_ray(self.model, self.data, self.ego_world, np.asarray(direction, np.float64),
+                          self.groups, 1, -1, geom)
+        return float(d) if d >= 0 else math.inf
+
+
+def rig_and_pose(q: np.ndarray, k: np.ndarray = K) -> tuple[StereoRig, np.ndarray]:
+    """The stereo rig in the left optical frame and the ego <- left transform, for joints q."""
+    poses = camera_poses(q.tolist())
+    left_right = np.linalg.inv(poses['left']) @ poses['right']
+    ego_left = np.linalg.inv(T_BASE_EGO) @ poses['left']
+    return StereoRig.create(k, k, np.eye(4), left_right), ego_left
+
+
+def cyclopean_direction(q: np.ndarray) -> np.ndarray:
+    """The gaze direction (ego axes) at joints q: the mean of the two optical axes."""
+    poses = camera_poses(q.tolist())
+    d = poses['left'][:3, 2] + poses['right'][:3, 2]
+    return d / np.linalg.norm(d)
+
+
+def target_bias(world: World) -> GMM:
+    """Table 3.1's 'target' prior (covariance 0.05 I about a unit direction), pointed at this
+    scene's target: the thesis's mean (0.61, 0.43, -0.67) is its Gazebo scene's target direction."""
+    d = world.nearest / np.linalg.norm(world.nearest)
+    return GMM.create([1.0], [d], [[0.05, 0.05, 0.05]])
+
+
+def run(world: World, pipe: StereoPipeline, cfg: Config, seed: int, T: int) -> dict:
+    """One search of T saccades; per-saccade rewards and information, and the path."""
+    ses = SensoryEgoSphere(20000, target_bias(world) if cfg.bias == 'target' else cfg.bias,
+                           seed=seed)
+    ses_reach = reachable_cells(ses.directions, AZIMUTH_LIMIT, ELEVATION_LIMITS)
+    refused = np.zeros(ses.n_cells, bool)
+    q = np.zeros(len(JOINT_NAMES))
+    target_cell = int(ses.associate(world.nearest[None])[0])
+    metrics = SearchMetrics(optimum=-world.nearest_distance)
+    estimated, fixations, points = [], [], []
+    cell = int(ses.associate(cyclopean_direction(q)[None])[0])
+    for t in range(T):
+        images = world.render(q)
+        rig, ego_left = rig_and_pose(q, world.k)
+        frame = pipe.process(images['left'], images['right'], rig)
+        seen = ses.n_obs[cell]
+        if frame.means.shape[0]:
+            ses.fuse(frame.means, frame.covs, ego_left)
+        if ses.n_obs[cell] == seen:
+            # fixating this cell gave it no observation (parallax between the eyes and ego, or
+            # no match): it would be chosen again and again, so it is excluded
+            refused[cell] = True
+        # saccade t's metrics: the fixated cell's reward, GI_t, LI_t
+        direction = ses.directions[cell] if ses.n_obs[cell] == 0 else \
+            ses.mean[cell] / np.linalg.norm(ses.mean[cell])
+        dist = world.ray_distance(direction)
+        gi = float(np.nanmean(information_from_precision(ses.info)))
+        li = local_information(ses.mean, ses.cov, world.nearest, R_NN, fallback=target_cell)
+        metrics.add(-dist, gi, li)
+        estimated.append(-float(np.linalg.norm(ses.mean[cell])))
+        fixations.append(cell)
+        points.append((direction * min(dist, 20.0)).round(4).tolist())
+        if t == T - 1:
+            break
+        # the next fixation
+        candidates = ses_reach & (ses.mean[:, 2] >= MIN_Z) & ~refused
+        for _ in range(20):
+            dec = choose_fixation(ses.mean, ses.cov, cfg.acquisition, cfg.alpha,
+                                  candidates=candidates)
+            p = dec.fixation
+            n = float(np.linalg.norm(p))
+            p = p * (min(max(n, FIXATION_DISTANCE[0]), FIXATION_DISTANCE[1]) / max(n, 1e-9))
+            try:
+                sol = solve_fixation(p + T_BASE_EGO[:3, 3])
+            except GazeError:
+                refused[dec.cell] = True
+                candidates[dec.cell] = False
+                continue
+            q, cell = sol.joints, dec.cell
+            break
+    gap, regret = metrics.gap(), metrics.regret()
+    found = [i + 1 for i, pt in enumerate(points)
+             if np.linalg.norm(np.asarray(pt) - world.nearest) < FOUND_RADIUS + 0.05]
+    return {'rewards': np.round(metrics.rewards, 4).tolist(),
+            'estimated_rewards': np.round(estimated, 4).tolist(),
+            'gap': np.round(gap, 4).tolist(), 'regret': np.round(regret, 4).tolist(),
+            'GI': np.round(metrics.gi, 4).tolist(), 'LI': np.round(metrics.li, 4).tolist(),
+            'summary': metrics.summary(),
+            'first_gap_0.9': next((i + 1 for i, g in enumerate(gap) if g >= 0.9), None),
+            'first_on_target': found[0] if found else None,
+            'on_target_count': len(found), 'fixated_cells': fixations}
+
+
+def configs(only: str, fovs: list[float]) -> list[Config]:
+    out = []
+    if only in ('all', 'fig311'):
+        for fov in fovs:
+            for sensor in ('logpolar', 'cartesian'):
+                out += [Config(sensor, 'ucb', a, 'unbiased', fov) for a in ALPHAS]
+                out += [Config(sensor, 'pi', 0.0, 'unbiased', fov),
+                        Config(sensor, 'ei', 0.0, 'unbiased', fov)]
+    if only in ('all', 'fig312') and HFOV in fovs:
+        out += [Config('logpolar', 'ucb', 100.0, b) for b in BIAS_NAMES
+                if only == 'fig312' or b != 'unbiased']
+    return out
+
+
+def aggregate(runs: list[dict]) -> dict:
+    """Means over repeats of the per-saccade curves and the summaries."""
+    keys = ('gap', 'regret', 'GI', 'LI')
+    out = {k: np.round(np.nanmean([r[k] for r in runs], axis=0), 4).tolist() for k in keys}
+    out['summary'] = {k: round(float(np.nanmean([r['summary'][k] for r in runs])), 4)
+                      for k in runs[0]['summary']}
+    for k in ('first_gap_0.9', 'first_on_target'):
+        vals = [r[k] for r in runs]
+        out[k] = vals
+        ok = [v for v in vals if v is not None]
+        out[k + '_mean'] = round(float(np.mean(ok)), 2) if ok else None
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--repeats', type=int, default=1)
+    ap.add_argument('--first-seed', type=int, default=0, help='cell-sampling seed of repeat 1')
+    ap.add_argument('--merge', type=Path, nargs='*', default=[],
+                    help='earlier JSON results whose runs are pooled with these (same configs)')
+    ap.add_argument('--T', type=int, default=50)
+    ap.add_argument('--only', choices=('all', 'fig311', 'fig312'), default='all')
+    ap.add_argument('--out', type=Path, default=ROOT / 'experiments' / 'results')
+    ap.add_argument('--tag', default='', help='suffix of the output files')
+    ap.add_argument('--fov', type=float, nargs='+', default=[HFOV],
+                    help='horizontal fields of view [deg] of the eye cameras (Fig. 3.11)')
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    t0 = time.time()
+    worlds = {fov: World(0, fov) for fov in args.fov}
+    world = worlds[args.fov[0]]
+    pipes = {s: StereoPipeline(W, H, s, (200, 200)) for s in ('logpolar', 'cartesian')}
+    cfgs = configs(args.only, args.fov)
+    results: dict = {'setting': {
+        'scene': 'visual_search seed 0', 'T': args.T, 'n_cells': 20000, 'repeats': args.repeats,
+        'image': [W, H], 'hfov_deg': args.fov, 'n_rf': [200, 200], 'min_z_m': MIN_Z,
+        'first_seed': args.first_seed, 'merged': [str(p) for p in args.merge],
+        'azimuth_limit_deg': 80.0, 'elevation_limits_deg': [-50.0, 60.0], 'R_NN_m': R_NN,
+        'nearest_point_ego_m': np.round(world.nearest, 4).tolist(),
+        'nearest_distance_m': round(world.nearest_distance, 4)},
+        'thesis': THESIS, 'configs': {}}
+    bar = tqdm(total=len(cfgs) * args.repeats, desc='active search runs')
+    earlier = [json.loads(p.read_text())['configs'] for p in args.merge]
+    for cfg in cfgs:
+        runs = []
+        for seed in range(args.first_seed, args.first_seed + args.repeats):
+            runs.append(run(worlds[cfg.hfov], pipes[cfg.sensor], cfg, seed, args.T))
+            bar.update(1)
+        for old in earlier:       # pool the runs of earlier invocations (other seeds)
+            runs += old.get(cfg.label, {}).get('runs', [])
+        agg = aggregate(runs)
+        results['configs'][cfg.label] = {'sensor': cfg.sensor, 'acquisition': cfg.acquisition,
+                                         'alpha': cfg.alpha if math.isfinite(cfg.alpha) else 'inf',
+                                         'bias': cfg.bias, 'hfov_deg': cfg.hfov, **agg,
+                                         'runs': runs}
+        tqdm.write(f'{cfg.label}: {agg["summary"]}; gap >= 0.9 at {agg["first_gap_0.9"]}, '
+                   f'on target at {agg["first_on_target"]}')
+    bar.close()
+    for old in earlier:       # configurations run only by earlier invocations are kept
+        for label, c in old.items():
+            results['configs'].setdefault(label, c)
+    results['setting']['repeats'] = {k: len(c['runs']) for k, c in results['configs'].items()}
+    results['seconds'] = round(time.time() - t0, 1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    tag = f'_{args.tag}' if args.tag else ''
+    path = args.out / f'active_search{tag}.json'
+    path.write_text(json.dumps(results, indent=1) + '\n')
+    plot(results, args.out, tag)
+    print(json.dumps({label: {**c['summary'], 'first_gap_0.9_mean': c['first_gap_0.9_mean']}
+                      for label, c in results['configs'].items()}))
+
+
+def color(cfg: dict) -> str:
+    wide = cfg.get('hfov_deg', HFOV) != HFOV
+    if cfg['sensor'] == 'logpolar':
+        return 'lightskyblue' if wide else 'C0'
+    return 'navajowhite' if wide else 'C1'
+
+
+def plot(results: dict, out: Path, tag: str) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    cfgs = results['configs']
+    fig311 = {k: v for k, v in cfgs.items() if v['bias'] == 'unbiased'}
+    fig312 = {k: v for k, v in cfgs.items()
+              if v['sensor'] == 'logpolar' and v['acquisition'] == 'ucb' and v['alpha'] == 100.0
+              and v.get('hfov_deg', HFOV) == HFOV}
+    metrics = (('G/S', 'gap', 'gap reduction g_t'), ('R/S', 'regret', 'cumulative regret R_t [m]'),
+               ('GI/S', 'GI', 'global information GI_t'), ('LI/S', 'LI', 'local information LI_t'))
+    for name, group in (('fig311', fig311), ('fig312', fig312)):
+        if not group:
+            continue
+        fig, axes = plt.subplots(2, 4, figsize=(17, 7.5))
+        labels = list(group)
+        x = np.arange(len(labels))
+        for col, (skey, ckey, title) in enumerate(metrics):
+            ax = axes[0, col]
+            vals = [group[k]['summary'][skey] for k in labels]
+            colors = [color(group[k]) for k in labels]
+            ax.bar(x, vals, color=colors)
+            ax.set_xticks(x)
+            ax.set_xticklabels([k.replace(' unbiased', '') if name == 'fig311' else
+                                group[k]['bias'] for k in labels], rotation=70, fontsize=7)
+            ax.set_title(skey)
+            ax = axes[1, col]
+            for k in labels:
+                if name == 'fig311' and not (group[k]['acquisition'] == 'ucb'
+                                             and group[k]['alpha'] == 100.0):
+                    continue
+                ax.plot(np.arange(1, len(group[k][ckey]) + 1), group[k][ckey],
+                        color=color(group[k]) if name == 'fig311' else None,
+                        label=k if name == 'fig311' else group[k]['bias'])
+            ax.set_xlabel('saccade t')
+            ax.set_title(title + (' (UCB alpha 100)' if name == 'fig311' else ''))
+            ax.legend(fontsize=7)
+        fig.suptitle(('Fig. 3.11: sensors and acquisition functions (blue log-polar, orange '
+                      'Cartesian; light: 135 deg FOV), unbiased memory' if name == 'fig311' else
+                      'Fig. 3.12: memory biases (log-polar, UCB alpha 100)')
+                     + f'; T = {results["setting"]["T"]}, '
+                     f'{min(len(group[k]["runs"]) for k in labels)}-'
+                     f'{max(len(group[k]["runs"]) for k in labels)} repeats')
+        fig.tight_layout()
+        fig.savefig(out / f'active_search_{name}{tag}.png', dpi=70)
+        plt.close(fig)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,308 @@
+"""The stereo_ses node live on the bundled runtime: a synthetic pair in; points, cells, gaze out.
+
+A test node publishes a textured fronto-parallel plane rendered exactly into both cameras
+(core.synthetic), camera_info, the camera poses on /tf_static and gaze states, and keeps what
+the node publishes; all in one process and one executor (the node's worker thread publishes).
+Nothing asserts on wall-clock time: the tests wait for conditions.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from stereo_ses_node import node as ses_node
+from stereo_ses_node.core.geometry import vergence_poses
+from stereo_ses_node.core.synthetic import plane_texture, render_plane
+from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
+from vizzy_runtime.ros import message, qos_profile_latched, qos_profile_sensor_data
+from vizzy_runtime.rclpy_compat.context import Context
+from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
+from vizzy_runtime.rclpy_compat.node import Node
+from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.testing import wait_until
+
+Image = message('sensor_msgs/msg/Image')
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
+PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+GazeState = message('active_vision_msgs/msg/GazeState')
+TFMessage = message('tf2_msgs/msg/TFMessage')
+TransformStamped = message('geometry_msgs/msg/TransformStamped')
+
+TIMEOUT = 30.0
+W, H = 320, 240
+F = 160.0 / np.tan(np.radians(85.4 / 2))
+K = np.array([[F, 0, 159.5], [0, F, 119.5], [0, 0, 1.0]])
+DEPTH = 1.0
+BASELINE = 0.204
+FRAMES = {'left': 'left_camera_optical_frame', 'right': 'right_camera_optical_frame'}
+# the cyclopean optical frame (z forward, x right, y down) 0.1 m in front of ego (x fwd, z up)
+EGO_CYC = np.eye(4)
+EGO_CYC[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+EGO_CYC[:3, 3] = [0.1, 0.0, 0.0]
+POSES = dict(zip(('left', 'right'), vergence_poses(BASELINE, 2 * np.arctan(0.102 / DEPTH))))
+
+
+def _stamped(parent: str, child: str, pose: np.ndarray) -> Any:
+    from scipy.spatial.transform import Rotation
+    msg = TransformStamped(child_frame_id=child)
+    msg.header.frame_id = parent
+    t = msg.transform
+    t.translation.x, t.translation.y, t.translation.z = (float(v) for v in pose[:3, 3])
+    t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w = (
+        float(v) for v in Rotation.from_matrix(pose[:3, :3]).as_quat())
+    return msg
+
+
+class Rig(Node):
+    """Publishes the stereo pair, camera_info, tf and gaze states; keeps the node's outputs."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__('fake_rig', context=context, start_parameter_services=False)
+        self.points: list[Any] = []
+        self.cells: list[Any] = []
+        self.gaze: list[Any] = []
+        self.image_pubs = {e: self.create_publisher(Image, ses_node.IMAGE_TOPICS[e],
+                                                    qos_profile_sensor_data) for e in FRAMES}
+        self.info_pubs = {e: self.create_publisher(CameraInfo, ses_node.INFO_TOPICS[e],
+                                                   qos_profile_sensor_data) for e in FRAMES}
+        self.tf_pub = self.create_publisher(TFMessage, '/tf_static', qos_profile_latched)
+        self.state_pub = self.create_publisher(GazeState, ses_node.GAZE_STATE_TOPIC, 10)
+        self.create_subscription(PointCloud2, ses_node.POINTS_TOPIC, self.points.append, 10)
+        self.create_subscription(PointCloud2, ses_node.CELLS_TOPIC, self.cells.append, 10)
+        self.create_subscription(GazeCommand, ses_node.GAZE_COMMAND_TOPIC, self.gaze.append, 10)
+        tex = plane_texture(512)
+        self.images = {e: render_plane(K, POSES[e], W, H, DEPTH, tex, 0.004) for e in FRAMES}
+
+    def publish_info(self) -> None:
+        for eye, pub in self.info_pubs.items():
+            info = CameraInfo(width=W, height=H)
+            info.header.frame_id = FRAMES[eye]
+            info.k = K.reshape(9).tolist()
+            pub.publish(info)
+
+    def publish_tf(self) -> None:
+        self.tf_pub.publish(TFMessage(transforms=[
+            _stamped('ego', FRAMES[e], EGO_CYC @ POSES[e]) for e in FRAMES]))
+
+    def image(self, eye: str, stamp: int, array: np.ndarray | None = None,
+              encoding: str = 'rgb8') -> Any:
+        msg = numpy_to_image(self.images[eye] if array is None else array, encoding)
+        msg.header.frame_id = FRAMES[eye]
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 100 + stamp, 0
+        return msg
+
+
+@pytest.fixture
+def graph(context):
+    rig = Rig(context)
+    ses = ses_node.StereoSesNode(context=context, parameter_overrides=[
+        Parameter('sensor', value='cartesian'), Parameter('n_rf', value=100),
+        Parameter('n_cells', value=3000), Parameter('max_rate_hz', value=30.0),
+        Parameter('decision_period_s', value=0.1), Parameter('frames_per_fixation', value=1),
+        Parameter('cells_rate_hz', value=20.0)])
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(rig)
+    executor.add_node(ses)
+    assert wait_until(lambda: all(p.get_subscription_count() > 0 for p in rig.image_pubs.values())
+                      and rig.state_pub.get_subscription_count() > 0
+                      and ses._points_pub.get_subscription_count() > 0
+                      and ses._cells_pub.get_subscription_count() > 0
+                      and ses._gaze_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    try:
+        yield rig, ses, executor
+    finally:
+        executor.remove_node(rig)
+        executor.remove_node(ses)
+        ses.destroy_node()
+        rig.destroy_node()
+
+
+_stamps = iter(range(10_000))
+
+
+def _feed(rig: Rig, ses: Any, executor: Any, left: Any = None, right: Any = None) -> bool:
+    """Publish a pair (again every 0.2 s: sensor data QoS is best effort) until it was handled."""
+    stamp = next(_stamps)
+    left = left or rig.image('left', stamp)
+    right = right or rig.image('right', stamp)
+    done = ses.pairs_processed + 1
+    for _ in range(int(TIMEOUT / 0.2)):
+        rig.image_pubs['left'].publish(left)
+        rig.image_pubs['right'].publish(right)
+        if wait_until(lambda: ses.pairs_processed >= done, 0.2, spin=executor):
+            return True
+    return False
+
+
+def _cells(msg: Any) -> np.ndarray:
+    return pointcloud2_to_array(msg).reshape(-1)
+
+
+def test_points_cells_gaze_and_saccades(graph, capsys) -> None:
+    rig, ses, executor = graph
+    # no camera_info yet: skipped with a message
+    assert _feed(rig, ses, executor)
+    assert ses.frames_skipped == 1 and ses.frames_fused == 0
+    assert 'waiting for /vizzy/left/camera_info' in capsys.readouterr().err
+    # no tf yet: skipped
+    rig.publish_info()
+    assert wait_until(lambda: len(ses._k) == 2, TIMEOUT, spin=executor)
+    assert _feed(rig, ses, executor)
+    assert ses.frames_skipped == 2 and 'no usable camera poses' in capsys.readouterr().err
+
+    rig.publish_tf()
+    assert wait_until(lambda: ses._tf.can_transform('ego', FRAMES['right']), TIMEOUT,
+                      spin=executor)
+    assert _feed(rig, ses, executor)
+    assert ses.frames_fused == 1
+    assert wait_until(lambda: rig.points and rig.cells and _cells(rig.cells[-1]).size,
+                      TIMEOUT, spin=executor)
+
+    # /stereo/points: in the left optical frame, on the plane, with covariances that fit
+    msg = rig.points[-1]
+    assert msg.header.frame_id == FRAMES['left'] and msg.header.stamp.sec >= 100
+    pts = pointcloud2_to_array(msg).reshape(-1)
+    assert pts.size > 1000
+    xyz = np.stack([pts['x'], pts['y'], pts['z']], axis=1).astype(np.float64)
+    in_cyc = xyz @ POSES['left'][:3, :3].T + POSES['left'][:3, 3]
+    err = in_cyc[:, 2] - DEPTH
+    assert abs(np.median(err)) < 0.02
+    cov = np.zeros((pts.size, 3, 3))
+    for name, (a, b) in (('cxx', (0, 0)), ('cxy', (0, 1)), ('cxz', (0, 2)), ('cyy', (1, 1)),
+                         ('cyz', (1, 2)), ('czz', (2, 2))):
+        cov[:, a, b] = cov[:, b, a] = pts[name]
+    assert np.all(np.linalg.eigvalsh(cov)[:, 0] > 0)                # positive definite
+    # depth sd along the plane normal (cyclopean z); the UT's spread matches the errors' scale
+    r = POSES['left'][:3, :3]
+    sd = np.sqrt(np.einsum('a,nab,b->n', r[2], cov, r[2]))
+    # z^2 sqrt(2) sigma / (f b) = 1.6 px * 1.41 / (174 px * 0.204 m) = 0.064 m at 1 m
+    assert np.median(sd) == pytest.approx(0.064, rel=0.15)
+    assert np.mean(np.abs(err) < 3 * sd) > 0.8
+    assert np.allclose(pts['information'], -np.log(np.linalg.det(cov)), atol=1e-2)
+    colour = pts['rgb'].view(np.uint32)
+    assert np.all((colour >> 16) & 0xFF == colour & 0xFF)           # grey texture: r == b
+
+    # /ses/cells: ego frame, the observed cells on the plane, information grows with frames
+    cells = _cells(rig.cells[-1])
+    assert rig.cells[-1].header.frame_id == 'ego'
+    assert np.all(cells['observations'] >= 1)
+    # the plane is at ego x = 1.1 m; a cell fuses the different plane points in its direction
+    # (about 3.7 deg across with 3000 cells) as one point, and their ray-elongated covariances
+    # pull the fused mean towards the eyes (see docs/stereo_ses.md)
+    assert 0.95 < np.median(cells['x']) < 1.12
+    info_1 = float(np.sum(ses._ses.n_obs))
+    for _ in range(3):
+        assert _feed(rig, ses, executor)
+    assert ses.frames_fused == 4
+    n = len(rig.cells)
+    assert wait_until(lambda: len(rig.cells) > n + 1, TIMEOUT, spin=executor)
+    later = _cells(rig.cells[-1])
+    assert later['observations'].max() >= 4 and float(np.sum(ses._ses.n_obs)) > info_1
+    assert np.median(later['information']) > np.median(cells['information']) + 1.0
+
+    # gaze: saccades to the chosen cells, in ego, at priority 20
+    assert wait_until(lambda: rig.gaze, TIMEOUT, spin=executor)
+    cmd = rig.gaze[-1]
+    assert cmd.source == 'stereo_ses' and cmd.priority == 20 and cmd.hold_time == 1.0
+    assert cmd.mode == GazeCommand.MODE_FIXATION_POINT and cmd.motion == GazeCommand.MOTION_SACCADE
+    assert cmd.header.frame_id == 'ego'
+    p = np.array([cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z])
+    assert 0.3 - 1e-6 <= np.linalg.norm(p) <= 8.0 + 1e-6 and p[2] >= -0.7
+    # in a saccade nothing is fused and no command is sent
+    cell = ses.last_decision.cell
+    rig.state_pub.publish(GazeState(in_saccade=True))
+    assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
+    fused, obs, sent = ses.frames_fused, ses._ses.n_obs.copy(), ses.gaze_commands
+    for _ in range(2):
+        assert _feed(rig, ses, executor)
+    assert ses.frames_in_saccade == 2 and ses.frames_fused == fused
+    assert np.array_equal(ses._ses.n_obs, obs) and ses.gaze_commands == sent
+    # the saccade settles: fusion and decisions resume
+    rig.state_pub.publish(GazeState(in_saccade=False))
+    assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
+    assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
+    # UCB alpha 100 explored an unobserved (prior) cell; the eyes never moved (no controller),
+    # so the frame after the "saccade" gave it no observation: it is excluded, and the next
+    # decision chooses another cell
+    assert ses._ses.n_obs[cell] == 0 and cell in ses._refused
+    assert wait_until(lambda: ses.gaze_commands == sent + 1, TIMEOUT, spin=executor)
+    assert ses.last_decision.cell != cell
+    # a pair stamped before the last saccade ended is not fused either (its poses are gone)
+    rig.state_pub.publish(GazeState(in_saccade=True))
+    assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
+    settled = GazeState(in_saccade=False)
+    settled.header.stamp.sec = 1_000_000
+    rig.state_pub.publish(settled)
+    assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
+    suppressed, fused = ses.frames_in_saccade, ses.frames_fused
+    assert _feed(rig, ses, executor)
+    assert ses.frames_in_saccade == suppressed + 1 and ses.frames_fused == fused
+
+
+def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capsys) -> None:
+    rig, ses, executor = graph
+    rig.publish_info()
+    rig.publish_tf()
+    assert wait_until(lambda: len(ses._k) == 2 and ses._tf.can_transform('ego', FRAMES['right']),
+                      TIMEOUT, spin=executor)
+    assert _feed(rig, ses, executor) and ses.frames_fused == 1
+    obs = ses._ses.n_obs.copy()
+    info = ses._ses.info.copy()
+
+    # left and right sizes differ
+    stamp = next(_stamps)
+    narrow = rig.image('right', stamp, rig.images['right'][:, :-20].copy())
+    assert _feed(rig, ses, executor, rig.image('left', stamp), narrow)
+    assert 'differ' in capsys.readouterr().err
+    # an image whose size disagrees with camera_info (both eyes)
+    stamp = next(_stamps)
+    small = {e: rig.image(e, stamp, rig.images[e][:200, :280].copy()) for e in FRAMES}
+    assert _feed(rig, ses, executor, small['left'], small['right'])
+    assert 'camera_info' in capsys.readouterr().err
+    # textureless images: only NaN disparities
+    stamp = next(_stamps)
+    flat = {e: rig.image(e, stamp, np.full((H, W, 3), 90, np.uint8)) for e in FRAMES}
+    assert _feed(rig, ses, executor, flat['left'], flat['right'])
+    assert 'no valid correspondences' in capsys.readouterr().err
+    assert ses.frames_skipped == 3 and ses.frames_fused == 1
+    assert np.array_equal(ses._ses.n_obs, obs) and np.array_equal(ses._ses.info, info)
+
+    # the eyes' images may arrive interleaved: pairs still form by stamp
+    received = ses.pairs_received
+    processed = ses.pairs_processed
+    for k in (7000, 7001):
+        rig.image_pubs['left'].publish(rig.image('left', k))
+    for k in (7000, 7001):
+        rig.image_pubs['right'].publish(rig.image('right', k))
+    assert wait_until(lambda: ses.pairs_received >= received + 1, TIMEOUT, spin=executor)
+    assert wait_until(lambda: ses.pairs_processed > processed, TIMEOUT, spin=executor)
+    assert ses.frames_fused >= 2 and ses.images_unpaired == 0
+    # stamps that never match: no pair is formed, the unpaired images go with a message
+    received = ses.pairs_received
+    for k in range(6):
+        rig.image_pubs['right'].publish(rig.image('right', 8000 + 2 * k))
+        rig.image_pubs['left'].publish(rig.image('left', 8001 + 2 * k))
+        wait_until(lambda: False, 0.05, spin=executor)
+    assert wait_until(lambda: 'stamps differ' in capsys.readouterr().err, TIMEOUT,
+                      spin=executor)
+    assert ses.pairs_received == received and ses.images_unpaired >= 6
+    # a mono8 image is dropped with a message
+    mono = rig.image('left', 6000, np.zeros((H, W), np.uint8), 'mono8')
+    rig.image_pubs['left'].publish(mono)
+    assert wait_until(lambda: "'mono8'" in capsys.readouterr().err, TIMEOUT, spin=executor)
+    # the node still works
+    fused = ses.frames_fused
+    assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
+
+    # parameters at run time: a new bias rebuilds the sphere, bad values are refused
+    change = [Parameter('bias', value='down'), Parameter('n_cells', value=1000)]
+    assert all(r.successful for r in ses.set_parameters(change))
+    assert _feed(rig, ses, executor)
+    assert ses._ses.n_cells == 1000 and ses._ses.directions[:, 2].mean() < -0.3
+    assert not ses.set_parameters([Parameter('ucb_alpha', value=-1.0)])[0].successful
+    assert not ses.set_parameters([Parameter('bias_weights', value=[0.5, 0.5])])[0].successful
+    assert ses.set_parameters([Parameter('ucb_alpha', value=float('inf'))])[0].successful
