@@ -8,6 +8,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    package_data={package_name: ['models/*.pt']},   # the pre-attention classifier's weights
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -25,6 +26,7 @@ setup(
         'console_scripts': [
             'cylinder_detector = cylinder_detector_node.node:main',
             'detect_file = cylinder_detector_node.detect_file:main',
+            'train_cylinder_classifier = cylinder_detector_node.train_classifier:main',
         ],
     },
 )

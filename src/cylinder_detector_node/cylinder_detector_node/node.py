@@ -1,8 +1,11 @@
 """The `cylinder_detector` node (thesis chapter 4): cylinders in RGB-D point clouds.
 
 Subscribes the organized PointCloud2 /vizzy/rgbd/points (sensor data QoS; any frame, normally the
-camera's optical frame), runs core.pipeline.detect_cylinders (tabletop segmentation, section 4.3.1,
-then the two-stage Hough fit per cluster, section 4.3.3, method `ours` or `rabbani`) and publishes
+camera's optical frame) and the matching colour image /vizzy/rgbd/image_raw (rgb8/bgr8, same
+size), runs core.pipeline.detect_cylinders (tabletop segmentation, section 4.3.1; the
+pre-attention CNN on each cluster's image patch, section 4.3.2, skipping the clusters it rejects;
+then the two-stage Hough fit per remaining cluster, section 4.3.3, method `ours` or `rabbani`) and
+publishes
 
   /cylinders          active_vision_msgs/CylinderArray, header = the cloud's
   /cylinders/markers  visualization_msgs/MarkerArray: DELETEALL, then one CYLINDER per cylinder
@@ -11,8 +14,12 @@ then the two-stage Hough fit per cluster, section 4.3.3, method `ours` or `rabba
 The table's "up" is the RANSAC plane normal turned towards the sensor (the core does it), so the
 Table 4.1 "vertical" biases mean "upright on the table" in any sensor frame.
 
-The pre-attention classifier (section 4.3.2) does not exist yet: `confidence` is the Eq. 4.4 fit
-quality (the same as `fit_quality`); classifier_enabled = true only logs that it is unavailable.
+Image pairing: the last IMAGE_BUFFER images are kept; a cloud takes the one with the nearest
+stamp if it is within image_tolerance_s (the simulator stamps both alike). Without a matching
+image, with an image whose size differs from the cloud's, or without a loadable model, the
+cylinders are detected without the classifier (a throttled warning says why). `confidence` is the
+classifier's P(cylinder) when the cluster was classified, else the Eq. 4.4 fit quality;
+`fit_quality` is always Eq. 4.4.
 
 The pipeline runs on a worker thread: the subscription callback only stores the newest cloud, so
 a cloud that arrives while one is being processed replaces any waiting one (older ones are
@@ -30,22 +37,27 @@ import time
 from typing import Any
 
 import numpy as np
+import torch
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
+from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
 from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylinder, FitParams
-from cylinder_detector_node.core.pipeline import Detection, detect_cylinders
+from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import SegmentParams
-from vizzy_runtime.convert import ConversionError, pointcloud2_to_array
+from vizzy_runtime.convert import ConversionError, image_to_numpy, pointcloud2_to_array
 from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 CylinderMsg = message('active_vision_msgs/msg/Cylinder')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+Image = message('sensor_msgs/msg/Image')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 
 CLOUD_TOPIC = '/vizzy/rgbd/points'
+IMAGE_TOPIC = '/vizzy/rgbd/image_raw'
+IMAGE_BUFFER = 8
 CYLINDERS_TOPIC = '/cylinders'
 MARKERS_TOPIC = '/cylinders/markers'
 WARN_PERIOD_S = 5.0
@@ -73,8 +85,13 @@ PARAMETERS: tuple[tuple[str, Any, str], ...] = (
     ('cluster_eps_m', 0.02, 'Euclidean clustering (DBSCAN) neighbourhood [m], in (0, 0.5].'),
     ('min_cluster_points', 30, 'Smallest object cluster (downsampled points), in [3, 100000].'),
     ('max_range_m', 3.0, 'Ignore points farther from the sensor [m]; 0 = no limit; in [0, 100].'),
-    ('classifier_enabled', False,
-     'Pre-attention CNN (section 4.3.2); not available yet: true is logged and ignored.'),
+    ('use_classifier', True,
+     'Run the pre-attention CNN (section 4.3.2) on each cluster\'s image patch and fit only the '
+     'clusters it accepts (needs the matching image on ' + IMAGE_TOPIC + ').'),
+    ('classifier_threshold', 0.5, 'Clusters with P(cylinder) below this are rejected, in [0, 1].'),
+    ('classifier_model', '', 'Classifier weights (.pt); empty = the packaged model.'),
+    ('image_tolerance_s', 0.05,
+     'Largest stamp difference between a cloud and its image [s], in [0, 10].'),
 )
 
 
@@ -104,6 +121,10 @@ def check_parameter(name: str, value: Any) -> str | None:
         return f'min_cluster_points must be in [3, 100000], got {value}'
     if name == 'max_range_m' and not 0.0 <= value <= 100.0:
         return f'max_range_m must be in [0, 100] m (0 = no limit), got {value}'
+    if name == 'classifier_threshold' and not 0.0 <= value <= 1.0:
+        return f'classifier_threshold must be in [0, 1], got {value}'
+    if name == 'image_tolerance_s' and not 0.0 <= value <= 10.0:
+        return f'image_tolerance_s must be in [0, 10] s, got {value}'
     return None
 
 
@@ -135,14 +156,14 @@ def cloud_problem(msg: Any, min_points: int) -> str | None:
 
 
 def cloud_xyz(msg: Any, min_points: int) -> np.ndarray:
-    """(H, W, 3) float64 xyz of a PointCloud2 (NaN kept); ValueError saying why it is unusable."""
+    """(H, W, 3) float32 xyz of a PointCloud2 (NaN kept); ValueError saying why it is unusable."""
     names = [f.name for f in msg.fields]
     missing = [n for n in ('x', 'y', 'z') if n not in names]
     if missing:
         raise ValueError(f'no field(s) {", ".join(missing)} (fields: {", ".join(names) or "none"})')
     points = pointcloud2_to_array(msg)     # ConversionError is a ValueError
-    xyz = np.stack([points['x'], points['y'], points['z']], axis=-1).astype(np.float64)
-    n = int(np.count_nonzero(np.all(np.isfinite(xyz), axis=-1)))
+    xyz = np.stack([points['x'], points['y'], points['z']], axis=-1).astype(np.float32, copy=False)
+    n = int(np.count_nonzero(np.isfinite(xyz.sum(axis=-1))))
     if n < min_points or n == 0:
         raise ValueError(f'{n} finite points of {points.size}, fewer than '
                          f'min_points={max(min_points, 1)}')
@@ -160,25 +181,45 @@ def quaternion_z_to(axis: np.ndarray) -> tuple[float, float, float, float]:
     return tuple(float(v) for v in q)                   # type: ignore[return-value]
 
 
-def cylinder_array(header: Any, cylinders: list[FittedCylinder]) -> Any:
+def stamp_s(stamp: Any) -> float:
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
+def rgb_image(msg: Any) -> np.ndarray:
+    """(H, W, 3) uint8 RGB of an rgb8/bgr8/rgba8/bgra8 Image; ValueError naming the problem."""
+    img = image_to_numpy(msg)          # ConversionError is a ValueError
+    enc = msg.encoding
+    if enc in ('rgb8', 'rgba8'):
+        return img[..., :3]
+    if enc in ('bgr8', 'bgra8'):
+        return img[..., 2::-1]
+    raise ValueError(f'image encoding {enc!r} is not a colour one (rgb8, bgr8, rgba8, bgra8)')
+
+
+def cylinder_array(header: Any, cylinders: list[FittedCylinder],
+                   probabilities: list[float | None] | None = None) -> Any:
     out = CylinderArray(header=header)
-    for i, c in enumerate(cylinders):
+    probabilities = probabilities or [None] * len(cylinders)
+    for i, (c, p) in enumerate(zip(cylinders, probabilities)):
         m = CylinderMsg(id=i, label='cylinder', radius=float(c.radius), height=float(c.height),
-                        confidence=float(c.confidence), fit_quality=float(c.confidence))
+                        confidence=float(c.confidence if p is None else p),
+                        fit_quality=float(c.confidence))
         m.center.x, m.center.y, m.center.z = (float(v) for v in c.centre)
         m.axis.x, m.axis.y, m.axis.z = (float(v) for v in c.axis)
         out.cylinders.append(m)
     return out
 
 
-def marker_array(header: Any, cylinders: list[FittedCylinder]) -> Any:
+def marker_array(header: Any, cylinders: list[FittedCylinder],
+                 probabilities: list[float | None] | None = None) -> Any:
     """DELETEALL, then a CYLINDER and a TEXT label per cylinder, in the cloud's frame."""
     out = MarkerArray()
     clear = Marker(action=Marker.DELETEALL)
     clear.header = header
     out.markers.append(clear)
-    for i, c in enumerate(cylinders):
-        conf = float(np.clip(c.confidence, 0.0, 1.0))
+    probabilities = probabilities or [None] * len(cylinders)
+    for i, (c, p) in enumerate(zip(cylinders, probabilities)):
+        conf = float(np.clip(c.confidence if p is None else p, 0.0, 1.0))
         body = Marker(ns='cylinders', id=i, type=Marker.CYLINDER, action=Marker.ADD)
         body.header = header
         body.pose.position.x, body.pose.position.y, body.pose.position.z = (float(v) for v in c.centre)
@@ -216,17 +257,26 @@ class CylinderDetectorNode(Node):
         self.frames_dropped = 0
         self.last_detection: Detection | None = None
         self.last_frame_ms: float | None = None
+        self._frame_ms: list[float] = []    # frame times since the last report
 
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._pending: Any = None           # newest cloud not yet processed
         self._stop = False
+        self._images: list[Any] = []        # the last IMAGE_BUFFER images (under _lock)
+        torch.set_num_threads(1)            # a ~60k-parameter CNN on a few patches: threads only contend
+        self.classifier: PatchClassifier | None = None
+        self.last_classified = False        # whether the last cloud went through the classifier
+        self._load_classifier()
 
         self._pub = self.create_publisher(CylinderArray, CYLINDERS_TOPIC, 10)
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, 10)
         self.create_subscription(
             PointCloud2, CLOUD_TOPIC, guarded(self, f'{CLOUD_TOPIC}: failed on a cloud',
                                               self._on_cloud), qos_profile_sensor_data)
+        self.create_subscription(
+            Image, IMAGE_TOPIC, guarded(self, f'{IMAGE_TOPIC}: failed on an image', self._on_image),
+            qos_profile_sensor_data)
         self._timer = self.create_timer(self._p['heartbeat_period_s'], self._on_heartbeat)
         self._worker = threading.Thread(target=self._work, name='cylinder_detector', daemon=True)
         self._worker.start()
@@ -234,9 +284,8 @@ class CylinderDetectorNode(Node):
         self.get_logger().info(
             f'detecting cylinders in {CLOUD_TOPIC} onto {CYLINDERS_TOPIC} and {MARKERS_TOPIC}: '
             f'method {p["method"]}, bias {p["bias"]}, N_d {p["n_directions"]}, radius '
-            f'{p["radius_min_m"]:g}-{p["radius_max_m"]:g} m, min confidence {p["min_confidence"]:g}')
-        if p['classifier_enabled']:
-            self._classifier_unavailable()
+            f'{p["radius_min_m"]:g}-{p["radius_max_m"]:g} m, min confidence {p["min_confidence"]:g}, '
+            f'classifier {"on (threshold %g, images from %s)" % (p["classifier_threshold"], IMAGE_TOPIC) if p["use_classifier"] else "off"}')
 
     # --- inputs ---------------------------------------------------------------------------------
 
@@ -247,6 +296,40 @@ class CylinderDetectorNode(Node):
                 self.frames_dropped += 1    # the worker is still busy: keep only the newest
             self._pending = msg
             self._wake.notify()
+
+    def _on_image(self, msg: Any) -> None:
+        with self._lock:
+            self._images.append(msg)
+            del self._images[:-IMAGE_BUFFER]
+
+    def _load_classifier(self) -> None:
+        """(Re)load the model when use_classifier is on; a missing or bad file is logged and the
+        node goes on without the classifier."""
+        self.classifier = None
+        if not self._p['use_classifier']:
+            return
+        path = self._p['classifier_model'] or DEFAULT_MODEL
+        try:
+            self.classifier = PatchClassifier.load(path)
+        except (OSError, ValueError) as exc:
+            self.get_logger().error(f'classifier unavailable, detecting without it: {exc}')
+
+    def matching_image(self, stamp: Any) -> tuple[np.ndarray | None, str | None]:
+        """(RGB image, None) of the buffered image nearest in time to stamp, or (None, why not)."""
+        with self._lock:
+            images = list(self._images)
+        if not images:
+            return None, f'no image on {IMAGE_TOPIC} yet'
+        t = stamp_s(stamp)
+        best = min(images, key=lambda m: abs(stamp_s(m.header.stamp) - t))
+        dt = abs(stamp_s(best.header.stamp) - t)
+        if dt > self._p['image_tolerance_s']:
+            return None, (f'no image within {self._p["image_tolerance_s"]:g} s of the cloud '
+                          f'(nearest {dt:.3f} s away)')
+        try:
+            return rgb_image(best), None
+        except ValueError as exc:
+            return None, f'{IMAGE_TOPIC}: {exc}'
 
     def _on_heartbeat(self) -> None:
         if time.monotonic() - self._last_cloud < self._p['heartbeat_period_s']:
@@ -261,13 +344,8 @@ class CylinderDetectorNode(Node):
             self._timer = replace_timer(self, self._timer, changed['heartbeat_period_s'],
                                         self._on_heartbeat)
         self._params = pipeline_params(self._p)   # check_all keeps FitParams valid
-        if changed.get('classifier_enabled'):
-            self._classifier_unavailable()
-
-    def _classifier_unavailable(self) -> None:
-        self.get_logger().warning(
-            'classifier_enabled: the pre-attention classifier (section 4.3.2) is not available '
-            'yet; detecting without it (confidence = Eq. 4.4 fit quality)')
+        if 'use_classifier' in changed or 'classifier_model' in changed:
+            self._load_classifier()
 
     def _warn(self, kind: str, text: str) -> None:
         """A warning at most once every WARN_PERIOD_S per kind of problem."""
@@ -299,30 +377,49 @@ class CylinderDetectorNode(Node):
             self._publish(msg.header, [])
             return None
         seg, fit = self._params
-        det = detect_cylinders(xyz, seg, fit)
+        image, classifier = None, None
+        if self._p['use_classifier'] and self.classifier is not None:
+            image, why = self.matching_image(msg.header.stamp)
+            if image is not None:
+                problem = image_problem(image, xyz.shape)
+                if problem is None:
+                    classifier = self.classifier
+                else:
+                    why = problem
+            if classifier is None:
+                self._warn('image', f'{CLOUD_TOPIC}: detecting without the classifier: {why}')
+        det = detect_cylinders(xyz, seg, fit, image=image, classifier=classifier,
+                               classifier_threshold=self._p['classifier_threshold'])
+        self.last_classified = classifier is not None
         ms = 1000.0 * (time.perf_counter() - t0)
         self.last_detection, self.last_frame_ms = det, ms
         self.frames_processed += 1
         if det.plane is None or (not det.cylinders and det.messages):
             self._warn('pipeline', f'{CLOUD_TOPIC}: no cylinders: {"; ".join(det.messages)}')
-        self._publish(msg.header, det.cylinders)
+        self._publish(msg.header, det.cylinders, det.probabilities)
         self._report(det, ms, xyz.shape)
         return det
 
-    def _publish(self, header: Any, cylinders: list[FittedCylinder]) -> None:
-        self._pub.publish(cylinder_array(header, cylinders))
-        self._marker_pub.publish(marker_array(header, cylinders))
+    def _publish(self, header: Any, cylinders: list[FittedCylinder],
+                 probabilities: list[float | None] | None = None) -> None:
+        self._pub.publish(cylinder_array(header, cylinders, probabilities))
+        self._marker_pub.publish(marker_array(header, cylinders, probabilities))
 
     def _report(self, det: Detection, ms: float, shape: tuple[int, ...]) -> None:
+        self._frame_ms.append(ms)
         now = time.monotonic()
         if now - self._last_report < REPORT_PERIOD_S:
             return
         self._last_report = now
+        times, self._frame_ms = self._frame_ms, []
+        stages = ', '.join(f'{k} {v:.0f}' for k, v in det.timings_ms.items())
         found = ', '.join(f'r {100 * c.radius:.1f} cm h {100 * c.height:.1f} cm p {c.confidence:.2f}'
                           for c in det.cylinders) or 'none'
         self.get_logger().info(
-            f'{shape[1]}x{shape[0]} cloud in {ms:.0f} ms: {len(det.cylinders)} cylinder(s) '
-            f'({found}), {det.rejected} cluster(s) rejected; {self.frames_processed} clouds '
+            f'{shape[1]}x{shape[0]} clouds in {np.median(times):.0f} ms median, {max(times):.0f} max '
+            f'over {len(times)} (last: {stages} ms): {len(det.cylinders)} cylinder(s) '
+            f'({found}), {det.rejected_by_classifier} cluster(s) rejected by the classifier, '
+            f'{det.rejected} by Eq. 4.4; {self.frames_processed} clouds '
             f'processed, {self.frames_dropped} dropped while busy')
 
     def destroy_node(self) -> Any:

@@ -60,3 +60,18 @@ def test_markers_turn_z_onto_the_axis() -> None:
     assert body.color.g > body.color.r          # confident: green
     arr = node.cylinder_array(header, [cyl])
     assert arr.cylinders[0].radius == 0.03 and arr.cylinders[0].fit_quality == 0.8
+
+
+def test_images_are_read_as_rgb() -> None:
+    from vizzy_runtime.convert import numpy_to_image
+    rgb = np.zeros((4, 5, 3), np.uint8)
+    rgb[..., 0] = 200                                    # red
+    assert (node.rgb_image(numpy_to_image(rgb, 'rgb8')) == rgb).all()
+    bgr = numpy_to_image(np.ascontiguousarray(rgb[..., ::-1]), 'bgr8')
+    assert (node.rgb_image(bgr) == rgb).all()
+    import pytest
+    with pytest.raises(ValueError, match='not a colour one'):
+        node.rgb_image(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'))
+    stamp = node.CylinderArray().header.stamp
+    stamp.sec, stamp.nanosec = 3, 500_000_000
+    assert node.stamp_s(stamp) == 3.5

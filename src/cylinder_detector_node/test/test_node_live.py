@@ -15,7 +15,7 @@ import pytest
 
 from cylinder_detector_node import node as cyl_node
 from cylinder_detector_node.core.scene import make_tabletop
-from vizzy_runtime.convert import array_to_pointcloud2
+from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
 from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
@@ -27,6 +27,7 @@ CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 Marker = message('visualization_msgs/msg/Marker')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+Image = message('sensor_msgs/msg/Image')
 
 TIMEOUT = 60.0
 FRAME = 'rgbd_camera_optical_frame'
@@ -42,6 +43,7 @@ class Camera(Node):
         self.markers: list[Any] = []
         self.cloud_pub = self.create_publisher(PointCloud2, cyl_node.CLOUD_TOPIC,
                                                qos_profile_sensor_data)
+        self.image_pub = self.create_publisher(Image, cyl_node.IMAGE_TOPIC, qos_profile_sensor_data)
         self.create_subscription(CylinderArray, cyl_node.CYLINDERS_TOPIC, self.arrays.append, 10)
         self.create_subscription(MarkerArray, cyl_node.MARKERS_TOPIC, self.markers.append, 10)
 
@@ -75,9 +77,19 @@ def _cloud_msg(xyz: np.ndarray, stamp_sec: int) -> Any:
     return msg
 
 
-def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:
-    """Publish msg again every second (sensor data QoS is best effort) until done()."""
+def _image_msg(rgb: np.ndarray, stamp_sec: int) -> Any:
+    msg = numpy_to_image(np.ascontiguousarray(rgb), 'rgb8')
+    msg.header.frame_id = FRAME
+    msg.header.stamp.sec = stamp_sec
+    return msg
+
+
+def _send_until(camera: Camera, executor: Any, msg: Any, done: Any, image: Any = None) -> bool:
+    """Publish (image and) msg again every second (sensor data QoS is best effort) until done()."""
     for _ in range(int(TIMEOUT)):
+        if image is not None:
+            camera.image_pub.publish(image)
+            wait_until(lambda: False, 0.05, spin=executor)   # let the image arrive first
         camera.cloud_pub.publish(msg)
         if wait_until(done, 1.0, spin=executor):
             return True
@@ -141,9 +153,11 @@ def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capsys) -> Non
                        lambda: any(a.header.stamp.sec == 8 for a in camera.arrays))
     assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 8)
     assert detector.set_parameters([Parameter('method', value='rabbani'),
-                                    Parameter('classifier_enabled', value=True)])[0].successful
+                                    Parameter('classifier_model', value='/nonexistent/model.pt')])[0].successful
     assert detector._params[1].method == 'rabbani'
-    assert 'not available yet' in capsys.readouterr().err
+    assert detector.classifier is None
+    assert 'classifier unavailable' in capsys.readouterr().err
+    assert not detector.set_parameters([Parameter('classifier_threshold', value=1.5)])[0].successful
     assert not detector.set_parameters([Parameter('radius_min_m', value=0.5)])[0].successful
     assert not detector.set_parameters([Parameter('bias', value='sideways')])[0].successful
 
@@ -166,3 +180,51 @@ def _xyz(v: Any) -> np.ndarray:
 def _rotate_z(x: float, y: float, z: float, w: float) -> np.ndarray:
     """The image of +z under the unit quaternion (x, y, z, w)."""
     return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+
+
+@pytest.fixture(scope='module')
+def rendered():
+    """The simulator's tabletop (seed 0) as its RGB-D camera sees it: image, cloud, ground truth."""
+    from cylinder_detector_node.sim_frames import SimRenderer
+    try:
+        r = SimRenderer()
+        frame = r.frame(0)
+        r.close()
+    except Exception as exc:   # no offscreen OpenGL
+        pytest.skip(f'no offscreen rendering: {exc}')
+    return frame
+
+
+def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered, capsys) -> None:
+    camera, detector, executor = graph
+    assert detector.classifier is not None
+    cloud, image = _cloud_msg(rendered.cloud, 50), _image_msg(rendered.image, 50)
+    stamped = lambda a: a.header.stamp.sec == 50   # noqa: E731
+    assert _send_until(camera, executor, cloud, lambda: any(map(stamped, camera.arrays)), image)
+    out = next(a for a in camera.arrays if stamped(a))
+    det = detector.last_detection
+    assert detector.last_classified and det.rejected_by_classifier >= 1
+    assert len(out.cylinders) == len(det.cylinders) >= 3
+    for c in out.cylinders:   # every reported cylinder is a real one; confidence = P(cylinder)
+        centre = np.array([[c.center.x, c.center.y, c.center.z]])
+        nearest = rendered.objects[int(np.argmin(rendered.surface_distances(centre)[0]))]
+        assert nearest.is_cylinder, nearest.name
+        assert 0.5 <= c.confidence <= 1.0 and 0.0 < c.fit_quality <= 1.0
+    # without the classifier the same frame gives non-cylinders too (Eq. 4.4 alone lets them through)
+    assert detector.set_parameters([Parameter('use_classifier', value=False)])[0].successful
+    assert _send_until(camera, executor, _cloud_msg(rendered.cloud, 51),
+                       lambda: any(a.header.stamp.sec == 51 for a in camera.arrays), image)
+    out_no = next(a for a in camera.arrays if a.header.stamp.sec == 51)
+    assert len(out_no.cylinders) > len(out.cylinders)
+    assert not detector.last_classified
+
+    # an image of another size: a clear message, detection goes on without the classifier
+    assert detector.set_parameters([Parameter('use_classifier', value=True)])[0].successful
+    capsys.readouterr()
+    small = _image_msg(rendered.image[::2, ::2], 52)
+    assert _send_until(camera, executor, _cloud_msg(rendered.cloud, 52),
+                       lambda: any(a.header.stamp.sec == 52 for a in camera.arrays), small)
+    assert not detector.last_classified
+    assert wait_until(lambda: 'image 320x240 does not match the 640x480 cloud' in capsys.readouterr().err,
+                      TIMEOUT, spin=executor)
+    assert any(a.header.stamp.sec == 52 and a.cylinders for a in camera.arrays)

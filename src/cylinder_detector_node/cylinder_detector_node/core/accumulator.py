@@ -70,8 +70,10 @@ def vote_curvature(directions: Array, normals: Array, c_max: Array, k_max: Array
     sharpness = 1 is Eq. 4.3 as printed. Absolute inner products make the vote independent of the
     (arbitrary) signs of n and c, as an axis is: d and -d are the same orientation.
     """
-    dn = np.abs(directions @ normals.T)
-    dc = np.abs(directions @ c_max.T)
+    # float32: votes need no more, and the (N_d x N) products and powers run twice as fast
+    d32 = directions.astype(np.float32, copy=False)
+    dn = np.abs(d32 @ normals.T.astype(np.float32))
+    dc = np.abs(d32 @ c_max.T.astype(np.float32))
     v = (1.0 - dc) * (1.0 - dn)
     if sharpness != 1.0:
         e = float(sharpness)
@@ -80,7 +82,7 @@ def vote_curvature(directions: Array, normals: Array, c_max: Array, k_max: Array
                 v *= v
         else:
             v = v ** e
-    return v @ k_max
+    return (v @ k_max.astype(np.float32)).astype(np.float64)
 
 
 def vote_normals(directions: Array, normals: Array) -> Array:

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .accumulator import TABLE_4_1, OrientationGMM, sample_gmm_directions, uniform_directions, vote_curvature, vote_normals
-from .geometry import normals_and_curvature
+from .geometry import normals_and_curvature, pca_normals
 
 Array = NDArray[np.float64]
 METHODS = ('ours', 'rabbani')
@@ -49,6 +49,11 @@ class FitParams:
     supports, so cap rims (locally cylinders along the rim tangent) spread over the equator instead
     of outvoting the side."""
     normal_axis_max_dot: float = 0.5     #: stage 2 keeps points with |n . axis| below this (as the authors' code)
+    coarse_points: int = 100             #: ours: points voting for every cell in the coarse pass (0 = one full pass)
+    candidates: int = 16                 #: ours: best coarse cells re-voted by all points
+    retry_peaks: int = 8                 #: ours: when the fit's Eq. 4.4 is below retry_below, try this many more peaks
+    retry_below: float = 0.5
+    retry_separation_deg: float = 45.0   #: the retried peaks are this far apart (as axes)
     seed: int = 0                        #: seeds the GMM accumulator
 
     def __post_init__(self) -> None:
@@ -102,21 +107,70 @@ def curvature_weights(k_max: Array, fraction: float | None) -> Array:
     x the cluster's 90th-percentile k_max (scale-free: k_max depends on neighbourhood size / radius)."""
     if fraction is None or len(k_max) == 0:
         return k_max
-    k_sat = fraction * float(np.quantile(k_max, 0.9))
+    # the 90th percentile (np.quantile's linear interpolation) from a partial sort: quantile's
+    # overhead was a third of this function's time on 600-point clusters
+    pos = 0.9 * (len(k_max) - 1)
+    lo = int(pos)
+    hi = min(lo + 1, len(k_max) - 1)
+    part = np.partition(k_max, (lo, hi))
+    k_sat = fraction * float(part[lo] + (pos - lo) * (part[hi] - part[lo]))
     if k_sat <= 1e-12:
         return np.ones_like(k_max)
     return np.minimum(k_max / k_sat, 1.0)
 
 
-def estimate_axis(normals: Array, c_max: Array, k_max: Array, directions: Array, method: str,
-                  saturation: float | None = 0.05, sharpness: float = 1.0) -> Array:
-    """Stage 1: the accumulator cell with most votes (Eq. 4.3 for 'ours', normals only for 'rabbani')."""
+def axis_votes(normals: Array, c_max: Array, k_max: Array, directions: Array, method: str,
+               saturation: float | None = 0.05, sharpness: float = 1.0, coarse_points: int = 0,
+               candidates: int = 0) -> tuple[int, Array]:
+    """Stage 1 votes: (index of the winning cell, votes of every cell) (Eq. 4.3 for 'ours',
+    normals only for 'rabbani').
+
+    For 'ours' with coarse_points > 0 and candidates > 0 the vote is coarse to fine: every cell is
+    voted by an evenly spaced subset of coarse_points points (the votes returned), then only the
+    `candidates` best cells by all points; the winner is the full vote's maximum among them (the
+    same as the full accumulator's unless the subset misranks the true peak below `candidates`
+    others).
+    """
     if method == 'rabbani':
         votes = vote_normals(directions, normals)
-    else:
-        votes = vote_curvature(directions, normals, c_max, curvature_weights(k_max, saturation), sharpness)
-    d = directions[int(np.argmax(votes))]
+        return int(np.argmax(votes)), votes
+    w = curvature_weights(k_max, saturation)
+    n = len(normals)
+    if 0 < coarse_points < n and 0 < candidates < len(directions):
+        sub = np.linspace(0, n - 1, coarse_points).astype(np.intp)
+        coarse = vote_curvature(directions, normals[sub], c_max[sub], w[sub], sharpness)
+        cand = np.argpartition(coarse, -candidates)[-candidates:]
+        fine = vote_curvature(directions[cand], normals, c_max, w, sharpness)
+        return int(cand[int(np.argmax(fine))]), coarse
+    votes = vote_curvature(directions, normals, c_max, w, sharpness)
+    return int(np.argmax(votes)), votes
+
+
+def estimate_axis(normals: Array, c_max: Array, k_max: Array, directions: Array, method: str,
+                  saturation: float | None = 0.05, sharpness: float = 1.0, coarse_points: int = 0,
+                  candidates: int = 0) -> Array:
+    """Stage 1: the unit direction of the accumulator cell with most votes (see axis_votes)."""
+    best, _ = axis_votes(normals, c_max, k_max, directions, method, saturation, sharpness, coarse_points,
+                         candidates)
+    d = directions[best]
     return d / np.linalg.norm(d)
+
+
+def separated_peaks(directions: Array, votes: Array, first: int, n: int, min_angle_deg: float) -> list[int]:
+    """Up to n cells after `first`, by decreasing votes, each at least min_angle_deg (as axes)
+    from every cell already taken (greedy, on a precomputed closeness matrix)."""
+    unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    order = np.argsort(-votes, kind='stable')
+    close = np.abs(unit[order] @ unit.T) >= np.cos(np.radians(min_angle_deg))   # (cells by votes, cells)
+    blocked = close[int(np.flatnonzero(order == first)[0])].copy()
+    taken: list[int] = []
+    for rank, i in enumerate(order):
+        if len(taken) >= n:
+            break
+        if not blocked[i]:
+            taken.append(int(i))
+            blocked |= close[rank]
+    return taken
 
 
 def rotation_to_z(axis: Array) -> Array:
@@ -186,9 +240,54 @@ def fit_cylinder(points: Array, params: FitParams | None = None, directions: Arr
         pts = pts[np.random.default_rng(params.seed).choice(len(pts), params.max_points, replace=False)]
     if directions is None:
         directions = make_directions(params)
-    normals, c_max, k_max = features if features is not None else normals_and_curvature(pts, params.k_neighbours)
-    axis = estimate_axis(normals, c_max, k_max, directions, params.method,
-                         params.curvature_saturation, params.vote_sharpness)
+    if features is not None:
+        normals, c_max, k_max = features
+    elif params.method == 'rabbani':   # the baseline needs normals only
+        normals, _ = pca_normals(pts, params.k_neighbours)
+        c_max, k_max = normals, np.zeros(len(pts))
+    else:
+        normals, c_max, k_max = normals_and_curvature(pts, params.k_neighbours)
+    best, votes = axis_votes(normals, c_max, k_max, directions, params.method, params.curvature_saturation,
+                             params.vote_sharpness, params.coarse_points, params.candidates)
+    fit = fit_with_axis(pts, normals, directions[best] / np.linalg.norm(directions[best]), params)
+    if params.method == 'ours' and params.retry_peaks > 0 and (fit is None or fit.confidence < params.retry_below):
+        # A weak fit: try the next well-separated accumulator peaks (short capped cylinders, whose
+        # lid rims outvote the side, get their true axis back this way). Candidates are compared
+        # by the curvature-weighted inlier fraction (the Eq. 4.3 weights: flat lid points count
+        # for nothing), not by Eq. 4.4, which wrong axes through big lids can win; they are scored
+        # on every 3rd point and only the winner is refitted on all points.
+        w = curvature_weights(k_max, params.curvature_saturation)
+        sub = slice(None, None, 3) if len(pts) >= 3 * params.min_points else slice(None)
+        best_score = -1.0 if fit is None else weighted_inliers(pts, w, fit, params)
+        best_axis = None
+        for i in separated_peaks(directions, votes, best, params.retry_peaks, params.retry_separation_deg):
+            axis = directions[i] / np.linalg.norm(directions[i])
+            other = fit_with_axis(pts[sub], normals[sub], axis, params)
+            score = -1.0 if other is None else weighted_inliers(pts[sub], w[sub], other, params)
+            if score > best_score:
+                best_score, best_axis = score, axis
+        if best_axis is not None:
+            other = fit_with_axis(pts, normals, best_axis, params)
+            if other is not None:
+                fit = other
+    if fit is None or fit.confidence < params.min_confidence:
+        return None
+    return fit
+
+
+def weighted_inliers(pts: Array, weights: Array, cyl: Cylinder, params: FitParams) -> float:
+    """Fraction of the weight of the points on cyl's surface (the Eq. 4.4 inlier test)."""
+    a, c = np.asarray(cyl.axis), np.asarray(cyl.centre)
+    v = pts - c
+    dist = np.linalg.norm(v - np.outer(v @ a, a), axis=1)
+    inl = np.abs(dist - cyl.radius) < params.inlier_distance * cyl.radius + params.inlier_floor
+    total = float(weights.sum())
+    return float(weights[inl].sum()) / total if total > 0 else 0.0
+
+
+def fit_with_axis(pts: Array, normals: Array, axis: Array, params: FitParams) -> Cylinder | None:
+    """Stage 2 for a given axis: circle Hough on the side points projected along it, least-squares
+    refinement, height from the inliers, confidence N_model / N_cluster (Eq. 4.4, not thresholded)."""
     rot = rotation_to_z(axis)
     q = pts @ rot.T
     side = np.abs(normals @ axis) < params.normal_axis_max_dot
@@ -204,11 +303,10 @@ def fit_cylinder(points: Array, params: FitParams | None = None, directions: Arr
             tol = params.inlier_distance * radius + params.inlier_floor
             inl = np.abs(np.linalg.norm(q[:, :2] - centre_xy, axis=1) - radius) < tol
     n_in = int(inl.sum())
-    confidence = n_in / len(pts)
-    if n_in < 3 or confidence < params.min_confidence:
+    if n_in < 3:
         return None
     z = q[inl, 2]
     z0, z1 = float(z.min()), float(z.max())
     centre = rot.T @ np.array([centre_xy[0], centre_xy[1], 0.5 * (z0 + z1)])
     return Cylinder(tuple(map(float, centre)), tuple(map(float, axis)), float(radius), z1 - z0,
-                    float(confidence), n_in, len(pts))
+                    float(n_in / len(pts)), n_in, len(pts))
