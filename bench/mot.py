@@ -60,6 +60,7 @@ def main() -> None:
     motp_delta, plan_ms, frame_ms, full_det, plan_det = [], [], [], [], []
     per_seed = []
     t_start = time.perf_counter()
+    load_start = os.getloadavg()[0]
     for seed in args.seeds:
         planner = PlannerConfig(k_max=args.k_max, s_max=args.s_max, budget_ms=args.budget_ms,
                                 seed=seed)
@@ -107,6 +108,7 @@ def main() -> None:
         'per_seed': per_seed,
         'image_size': list(SIZE),
         'load_avg_1min': round(os.getloadavg()[0], 2),
+        'load_avg_1min_start': round(load_start, 2),
         'cpus': os.cpu_count(),
         'wall_s': round(time.perf_counter() - t_start, 1),
     }

@@ -31,7 +31,15 @@ has no sample around the image's stamp the latest transform stands in for it.
 
 Gaze: only tracks detected at least gaze_min_hits times and at least gaze_min_age frames old
 steer the head (a bootstrap detection is a track at once, and a one-off false positive must
-not pull the head around).
+not pull the head around), and, with person_check, only tracks that plausibly are people
+(core.ground_plane): the ray through the bottom centre of the box meets the floor (floor_z_m
+in world_frame) where a person standing there would have a height in person_height_m, on
+each of the track's last person_check_frames frames, varying by at most person_height_ratio
+(max/min) over them. Objects on a table that the detector
+takes for people (HOG on the tabletop scene) imply 0.5-1.2 m, or heights that wander as the
+head moves. Such tracks are still tracked and published, with label 'person_implausible'
+instead of 'person', and drawn grey in the overlay. Without camera_info or the camera's pose
+the check is skipped (logged once).
 
 Track velocities are converted from px/frame to px/s with the frame period measured from the
 image stamps (NOMINAL_FPS until two stamped frames arrived). Bad input (an unsupported encoding,
@@ -56,6 +64,7 @@ import numpy as np
 from mot_planner_node.core.detector import Detector, HogDetector
 from mot_planner_node.core.egomotion import (OrientationHistory, rotation_between,
                                              rotation_homography, warp_beliefs)
+from mot_planner_node.core.ground_plane import ConsistencyGate, implied_size
 from mot_planner_node.core.kalman import predict
 from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.regions import constraint_areas
@@ -86,6 +95,11 @@ GAZE_COMMAND_TOPIC = '/gaze/command'
 SOURCE = 'mot_planner'
 ENCODINGS = ('rgb8', 'bgr8')
 NOMINAL_FPS = 30.0
+# The floor in base_link: -vizzy_sim_bridge.core.kinematics.WAIST_HEIGHT (the waist joint's height
+# in vizzy_description), copied so that the node does not depend on the simulator's package.
+FLOOR_Z_M = -0.535797
+LABEL_PERSON = 'person'
+LABEL_IMPLAUSIBLE = 'person_implausible'     # a person box that does not stand on the floor
 WARN_PERIOD_S = 5.0
 
 # (name, default, description): the node declares exactly these.
@@ -113,14 +127,28 @@ PARAMETERS: tuple[tuple[str, Any, str], ...] = (
      '[1, 1000].'),
     ('gaze_min_age', 5, 'Only tracks at least this many frames old steer the gaze, in '
      '[0, 100000].'),
+    ('person_check', True,
+     'Only tracks whose box stands on the floor at a person\'s height steer the gaze (needs '
+     'camera_info and the camera\'s pose in world_frame).'),
+    ('person_height_m', [1.3, 2.5],
+     'Range [min, max] of the height [m] a box standing on the floor must imply, 0 < min < max '
+     '<= 10.'),
+    ('floor_z_m', FLOOR_Z_M, 'Height of the floor in world_frame [m] (base_link, the waist, '
+     'stands WAIST_HEIGHT above it), in [-100, 100].'),
+    ('person_check_frames', 5, 'The implied height must be in range on each of a track\'s last '
+     'this many frames, in [1, 1000].'),
+    ('person_height_ratio', 1.3, 'Largest max/min of a track\'s implied heights over those '
+     'frames (a person\'s stays put; a box above the floor sweeps as the head moves), in '
+     '[1, 10].'),
     ('ego_motion', True, 'Compensate the camera\'s rotation between images (from /tf).'),
     ('world_frame', 'base_link', 'A frame that does not rotate with the head, for ego-motion.'),
 )
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
 DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
-_BOOLS = ('publish_overlay', 'publish_gaze', 'ego_motion')
+PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
+_BOOLS = ('publish_overlay', 'publish_gaze', 'ego_motion', 'person_check')
 _INTS = ('k_max', 'full_frame_period', 'win_stride', 'gaze_priority', 'gaze_min_hits',
-         'gaze_min_age')
+         'gaze_min_age', 'person_check_frames')
 _RANGES: dict[str, tuple[float, float, bool]] = {   # name: (lo, hi, lo exclusive)
     'k_max': (1, 20, False), 's_max': (0.0, 1.0, True), 'alpha_c': (0.0, 10.0, False),
     'alpha_s': (0.0, 10.0, False), 'budget_ms': (0.0, 1000.0, True),
@@ -128,6 +156,8 @@ _RANGES: dict[str, tuple[float, float, bool]] = {   # name: (lo, hi, lo exclusiv
     'win_stride': (8, 64, False), 'scale': (1.0, 2.0, True), 'gaze_priority': (0, 1000, False),
     'gaze_depth_m': (0.1, 100.0, True), 'gaze_rate_hz': (0.0, 30.0, True),
     'gaze_min_hits': (1, 1000, False), 'gaze_min_age': (0, 100000, False),
+    'floor_z_m': (-100.0, 100.0, False), 'person_check_frames': (1, 1000, False),
+    'person_height_ratio': (1.0, 10.0, False),
 }
 TF_HISTORY_S = 2.0
 
@@ -136,6 +166,13 @@ def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name, or None if it is."""
     if name in _BOOLS:
         return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
+    if name == 'person_height_m':
+        ok = (isinstance(value, (list, tuple)) and len(value) == 2
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                      and math.isfinite(v) for v in value)
+              and 0.0 < value[0] < value[1] <= 10.0)
+        return None if ok else f'person_height_m must be [min, max] with 0 < min < max <= 10, ' \
+                               f'got {value!r}'
     if name == 'world_frame':
         ok = isinstance(value, str) and value.strip('/') != ''
         return None if ok else f'world_frame must be a frame id, got {value!r}'
@@ -205,6 +242,8 @@ class MotPlannerNode(Node):
         self._hits: dict[int, int] = {}          # track id -> hits seen last frame
         self._lost: dict[int, int] = {}          # track id -> consecutive frames unmatched
         self._last_gaze = -math.inf
+        self._persons = self._person_gate()
+        self.last_implied_heights: dict[int, float] = {}    # track id -> [m], last check
         self._tf = TransformBuffer()
         self._orientations: dict[str, OrientationHistory] = {}   # camera frame -> history
         self._last_pose: np.ndarray | None = None   # camera in world_frame at the last frame
@@ -258,7 +297,14 @@ class MotPlannerNode(Node):
                             planner=planner_config(self._p))
         return MotTracker(DETECTOR_FACTORY(dict(self._p)), cfg)
 
+    def _person_gate(self) -> ConsistencyGate:
+        p = self._p
+        return ConsistencyGate(tuple(p['person_height_m']), int(p['person_check_frames']),
+                               float(p['person_height_ratio']))
+
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if any(name in changed for name in PERSON_PARAMETERS):
+            self._persons = self._person_gate()       # new criteria: judge from scratch
         if any(name in changed for name in DETECTOR_PARAMETERS):
             self._tracker = self._new_tracker()
             self._forget_tracks()
@@ -344,6 +390,7 @@ class MotPlannerNode(Node):
         self._born.clear()
         self._hits.clear()
         self._lost.clear()
+        self._persons.clear()
 
     # --- the frame loop ---------------------------------------------------------------------
 
@@ -377,13 +424,14 @@ class MotPlannerNode(Node):
         self.frames_processed += 1
         self._update_frame_period(msg.header.stamp)
         self._update_bookkeeping(result)
-        self._tracks_pub.publish(self._track_array(msg.header, result))
+        persons = self._check_persons(msg.header, result, pose)
+        self._tracks_pub.publish(self._track_array(msg.header, result, persons))
         self._attention_pub.publish(self._attention(msg.header, result, areas, size))
         if self._p['publish_overlay']:
             self._overlay_pub.publish(numpy_to_image(
-                self._overlay(image, msg.encoding, result), 'rgb8', header=msg.header))
+                self._overlay(image, msg.encoding, result, persons), 'rgb8', header=msg.header))
         if self._p['publish_gaze']:
-            self._send_gaze(msg.header, result, pose)
+            self._send_gaze(msg.header, result, pose, persons)
 
     def _constraint_areas(self, size: tuple[int, int],
                           homography: np.ndarray | None) -> dict[int, float]:
@@ -424,9 +472,31 @@ class MotPlannerNode(Node):
             for tid in [k for k in d if k not in alive]:
                 del d[tid]
 
+    def _check_persons(self, header: Any, result: FrameResult,
+                       pose: np.ndarray | None) -> np.ndarray:
+        """Mask of the reported tracks that plausibly are people: their boxes stood on the
+        floor at a height in person_height_m, steady within person_height_ratio, on each of
+        their last person_check_frames frames (core.ground_plane). All true when the check is
+        off or cannot be made (no camera_info, no pose of the image frame in world_frame)."""
+        n = len(result.ids)
+        if not self._p['person_check']:
+            return np.ones(n, dtype=bool)
+        if pose is None and header.frame_id:     # ego-motion off: the pose is still needed
+            pose = self._camera_pose(header)
+        if pose is None or self._k is None:
+            self._note_once('person', f'no {CAMERA_INFO_TOPIC} or no transform '
+                                      f'{self._p["world_frame"]} -> '
+                                      f'{header.frame_id or "(no frame_id)"}: person boxes are '
+                                      'not checked against the floor until there are')
+            return np.ones(n, dtype=bool)
+        size = implied_size(result.boxes, np.reshape(self._k, (3, 3)), pose,
+                            float(self._p['floor_z_m']))
+        self.last_implied_heights = dict(zip(result.ids.tolist(), size.height.tolist()))
+        return self._persons.update(result.ids, size.height)
+
     # --- outputs ----------------------------------------------------------------------------
 
-    def _track_array(self, header: Any, result: FrameResult) -> Any:
+    def _track_array(self, header: Any, result: FrameResult, persons: np.ndarray) -> Any:
         out = TrackArray(header=header)
         fps = 1.0 / self._frame_period
         jac = np.diag([1.0, 1.0, 1.0, fps, fps, fps])       # px/frame -> px/s
@@ -437,7 +507,7 @@ class MotPlannerNode(Node):
             box = result.boxes[i]
             cov = jac @ result.covariances[i] @ jac
             tracks.append(Track(
-                id=int(tid), label='person',
+                id=int(tid), label=LABEL_PERSON if persons[i] else LABEL_IMPLAUSIBLE,
                 center_u=float(box[0] + box[2] / 2), center_v=float(box[1] + box[3] / 2),
                 width=float(box[2]), height=float(box[3]), scale=float(x[2]),
                 velocity_u=float(x[3] * fps), velocity_v=float(x[4] * fps),
@@ -468,18 +538,20 @@ class MotPlannerNode(Node):
                                 budget_fraction=float(fraction), k_max=int(cfg.k_max),
                                 s_max=float(cfg.s_max), planning_time_ms=1e3 * result.plan_s)
 
-    def _overlay(self, image: np.ndarray, encoding: str, result: FrameResult) -> np.ndarray:
+    def _overlay(self, image: np.ndarray, encoding: str, result: FrameResult,
+                 persons: np.ndarray) -> np.ndarray:
         rgb = cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if encoding == 'bgr8' else image.copy()
         colour = (0, 255, 255) if result.full_frame else (255, 220, 0)
         for reg in result.regions:
             x0, y0 = int(reg[0]), int(reg[1])
             x1, y1 = int(min(reg[2], rgb.shape[1])) - 1, int(min(reg[3], rgb.shape[0])) - 1
             cv2.rectangle(rgb, (x0, y0), (x1, y1), colour, 1)
-        for tid, box in zip(result.ids.tolist(), result.boxes):
+        for tid, box, person in zip(result.ids.tolist(), result.boxes, persons.tolist()):
             x, y, w, h = (int(round(v)) for v in box)
-            cv2.rectangle(rgb, (x, y), (x + w, y + h), (0, 255, 0), 2)
+            colour = (0, 255, 0) if person else (150, 150, 150)   # grey: not on the floor
+            cv2.rectangle(rgb, (x, y), (x + w, y + h), colour, 2)
             cv2.putText(rgb, str(tid), (x + 2, max(y - 4, 10)), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                        (0, 255, 0), 1, cv2.LINE_AA)
+                        colour, 1, cv2.LINE_AA)
         return rgb
 
     def _gaze_tracks(self, result: FrameResult) -> np.ndarray:
@@ -489,13 +561,16 @@ class MotPlannerNode(Node):
         return (result.hits >= int(self._p['gaze_min_hits'])) & (
             ages >= int(self._p['gaze_min_age']))
 
-    def _send_gaze(self, header: Any, result: FrameResult, pose: np.ndarray | None) -> None:
-        """pose: the camera's pose in world_frame when the image was taken. With it the point
-        goes out in world_frame, so the head's motion since the image (the gaze controller
-        applies the latest tf) does not shift it; without it, in the image's frame."""
+    def _send_gaze(self, header: Any, result: FrameResult, pose: np.ndarray | None,
+                   persons: np.ndarray) -> None:
+        """Pursuit of the established (gaze_min_hits, gaze_min_age), plausible (persons)
+        tracks' mean centre. pose: the camera's pose in world_frame when the image was taken.
+        With it the point goes out in world_frame, so the head's motion since the image (the
+        gaze controller applies the latest tf) does not shift it; without it, in the image's
+        frame."""
         if self._in_saccade:
             return
-        steer = self._gaze_tracks(result)
+        steer = self._gaze_tracks(result) & persons
         if not steer.any():
             return
         now = time.monotonic()

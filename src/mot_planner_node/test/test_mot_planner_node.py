@@ -29,3 +29,11 @@ def test_images_are_checked() -> None:
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
     with node_under_test(node.MotPlannerNode) as ros_node:
         check_node_parameters(ros_node, node.PARAMETERS, 's_max', 2.0)
+
+
+def test_floor_default_is_the_kinematics_constant() -> None:
+    """floor_z_m's default is the floor in base_link (the node copies it, not to depend on
+    the simulator's package at run time)."""
+    from vizzy_sim_bridge.core.kinematics import WAIST_HEIGHT
+    assert node.FLOOR_Z_M == -WAIST_HEIGHT
+    assert dict((n, d) for n, d, _ in node.PARAMETERS)['floor_z_m'] == -WAIST_HEIGHT

@@ -283,8 +283,10 @@ def test_ego_motion_from_tf_keeps_tracks_through_a_head_turn(graph, ego_motion) 
     from mot_planner_node.core.egomotion import rotation_homography, warp_points
     camera, mot, executor = graph
     tf_pub = camera.create_publisher(TFMessage, '/tf', 10)
-    assert mot.set_parameters([Parameter('ego_motion', value=ego_motion),
-                               Parameter('full_frame_period', value=1000)])[0].successful
+    # the blobs are not people standing on a floor (test_gaze_only_on_people_on_the_floor)
+    assert all(r.successful for r in mot.set_parameters([
+        Parameter('ego_motion', value=ego_motion), Parameter('full_frame_period', value=1000),
+        Parameter('person_check', value=False)]))
     assert wait_until(lambda: tf_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
     camera.info_pub.publish(_camera_info())
     assert wait_until(lambda: mot._k is not None, TIMEOUT, spin=executor)
@@ -354,3 +356,38 @@ def test_gaze_only_on_established_tracks(graph) -> None:
     assert p.x / p.z == pytest.approx((60.0 - WIDTH / 2) / 200.0, abs=0.03)
     assert not mot.set_parameters([Parameter('gaze_min_hits', value=0)])[0].successful
     assert not mot.set_parameters([Parameter('world_frame', value='')])[0].successful
+
+
+def test_gaze_only_on_people_on_the_floor(graph) -> None:
+    """With the camera 1.036 m above the floor (0.5 m above base_link, floor_z_m = -0.536),
+    level: a blob whose bottom meets the floor 4 m away at a 1.7 m person's size steers the
+    head; a larger one just below the horizon (a 'person' 8 m tall, 21 m away) is tracked,
+    labelled implausible and drawn grey, and never steers."""
+    camera, mot, executor = graph
+    tf_pub = camera.create_publisher(TFMessage, '/tf', 10)
+    assert wait_until(lambda: tf_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    camera.info_pub.publish(_camera_info())
+    assert wait_until(lambda: mot._k is not None, TIMEOUT, spin=executor)
+    # person: feet at v = 120 + 200 * 1.0358 / 4 = 171.8, head at 120 - 200 * 0.6642 / 4 = 86.8
+    person_c, person_s = np.array([[60.0, 129.3]]), np.array([[34.0, 85.0]])
+    ghost_c, ghost_s = np.array([[250.0, 90.0]]), np.array([[40.0, 80.0]])
+    image = _blobs(np.concatenate([person_c, ghost_c]), np.concatenate([person_s, ghost_s]))
+    for frame in range(10):
+        msg = _image(image, frame)
+        tf_pub.publish(_tf(msg.header.stamp, OPTICAL_IN_BASE))
+        assert wait_until(lambda: mot._tf.can_transform('base_link', FRAME), TIMEOUT,
+                          spin=executor)
+        assert _feed(camera, mot, executor, msg)
+    assert wait_until(lambda: camera.gaze and len(camera.tracks) >= 10, TIMEOUT, spin=executor)
+    heights = sorted(mot.last_implied_heights.values())
+    assert heights[0] == pytest.approx(1.7, abs=0.1) and heights[1] > 5.0
+    tracks = sorted(camera.tracks[-1].tracks, key=lambda t: t.center_u)
+    assert [t.label for t in tracks] == ['person', 'person_implausible']
+    assert tracks[0].center_u == pytest.approx(60.0, abs=3.0)
+    for cmd in camera.gaze:     # towards the person: 100 px left of centre at fx = 200
+        p = cmd.fixation_point
+        assert cmd.header.frame_id == 'base_link' and p.y / p.x == pytest.approx(0.5, abs=0.05)
+    overlay = image_to_numpy(camera.overlays[-1])
+    assert ((overlay == (150, 150, 150)).all(axis=2)).any()             # a grey track box
+    assert not mot.set_parameters([Parameter('person_height_m', value=[2.0, 1.0])])[0].successful
+    assert not mot.set_parameters([Parameter('person_check_frames', value=0)])[0].successful

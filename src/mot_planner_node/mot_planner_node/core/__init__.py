@@ -7,6 +7,7 @@
 - association: Hungarian association on Mahalanobis distance with gating.
 - detector: the detector plug-in interface and OpenCV's HOG people detector.
 - egomotion: beliefs moved by the camera's rotation between frames (H = K R K^-1).
+- ground_plane: does a person box stand on the floor at a person's height (gaze gate).
 - tracker: the per-frame pipeline of Fig. 5.1 (predict, plan, detect, associate, update).
 - motchallenge, metrics: MOTChallenge folders and CLEAR MOT / IDF1 scoring.
 - simulated: synthetic pedestrians and a simulated detector for tests and benchmarks.

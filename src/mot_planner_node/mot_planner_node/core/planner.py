@@ -21,15 +21,16 @@ on a scale UCT's exploration constant can be set for. MCTS (section 5.3.5): UCT 
 (Eq. 5.25) with progressive widening over actions ordered by their immediate expected gain,
 expansion of one node per run, rollouts that sample regions with probability rising with
 their predicted entropy (``exp(H / temperature)``), back-propagation of discounted returns;
-runs until the time budget or the iteration cap. Only maximal feasible actions are
-considered: attending never increases a covariance, so an action that could still take one
-more region is dominated by the one that takes it.
+runs until the time budget (a wall-clock deadline with an adaptive reserve) or the iteration
+cap. Only maximal feasible actions are considered: attending never increases a covariance,
+so an action that could still take one more region is dominated by the one that takes it.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from itertools import combinations
 
@@ -44,6 +45,10 @@ from .regions import (AREA_MODES, centre_areas, constraint_areas, region_areas,
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
+
+RECENT_RUNS = 8       # MCTS runs whose slowest estimates the next one's cost (deadline)
+RESERVE_STEP = 0.05   # reserve adaptation step, fraction of the budget
+MAX_RESERVE = 0.5     # the reserve leaves at least half the budget to the search
 
 
 @dataclass(frozen=True)
@@ -63,6 +68,8 @@ class PlannerConfig:
         ceil(widening * visits^widening_exp) actions.
     rollout_temperature: rollout picks region k with probability ~ exp(H_k / temperature).
     expectation_points: scales sampled per region for Eq. 5.22.
+    miss_rate: the share of plans allowed to end past budget_ms; a reserve before the budget
+        adapts to it (None: no reserve, the search runs up to the budget).
     seed: random seed of the planner's generator.
     """
 
@@ -82,6 +89,7 @@ class PlannerConfig:
     widening_exp: float = 0.5
     rollout_temperature: float = 1.0
     expectation_points: int = 5
+    miss_rate: float | None = 0.05
     seed: int | None = None
 
     def __post_init__(self) -> None:
@@ -108,6 +116,8 @@ class PlannerConfig:
             problems.append(f'p_detect must be in (0, 1], got {self.p_detect}')
         if not 1 <= self.pool_size <= 20:
             problems.append(f'pool_size must be in [1, 20], got {self.pool_size}')
+        if self.miss_rate is not None and not 0.0 < self.miss_rate < 1.0:
+            problems.append(f'miss_rate must be in (0, 1) or None, got {self.miss_rate}')
         if self.rollout_temperature <= 0:
             problems.append(f'rollout_temperature must be > 0, got {self.rollout_temperature}')
         if problems:
@@ -209,6 +219,7 @@ class MctsPlanner:
         self.observation = observation
         self.rng = np.random.default_rng(cfg.seed)
         self._subsets_cache: dict[tuple[int, int], BoolArray] = {}
+        self.reserve_s = 0.0      # the search stops this long before the budget (load)
 
     @property
     def geometry(self) -> DetectorGeometry:
@@ -240,7 +251,24 @@ class MctsPlanner:
         tables = belief_tables(x, P, pool, self.motion, self.observation, cfg, image_size)
         best, iterations, value = self._search(tables, budget, t0)
         action[pool[best]] = True
-        return Plan(action, regions, areas, iterations, time.perf_counter() - t0, value)
+        plan_s = time.perf_counter() - t0
+        self._adapt_reserve(plan_s)
+        return Plan(action, regions, areas, iterations, plan_s, value)
+
+    def _adapt_reserve(self, plan_s: float) -> None:
+        """Track the reserve that makes plans miss the budget at rate cfg.miss_rate.
+
+        A Robbins-Monro quantile tracker: each searched plan moves the reserve up by
+        step (1 - q) when it ended late and down by step q when it did not, which balances at
+        P(late) = q. On an idle machine plans end in time and the reserve decays to zero; when
+        the OS preempts the planner (load) it grows to about the preemptions' length."""
+        cfg = self.cfg
+        if cfg.budget_ms is None or cfg.miss_rate is None:
+            return
+        budget_s = cfg.budget_ms / 1000.0
+        late = plan_s > budget_s
+        self.reserve_s += RESERVE_STEP * budget_s * (float(late) - cfg.miss_rate)
+        self.reserve_s = min(max(self.reserve_s, 0.0), MAX_RESERVE * budget_s)
 
     # --- MCTS -----------------------------------------------------------------------------
 
@@ -271,7 +299,9 @@ class MctsPlanner:
         best_gain = np.sort(tables.gain[:, :, 1::2].max(axis=2), axis=0)[::-1][:cfg.k_max]
         scale = max(float((best_gain.sum(axis=0) * gammas).sum()), 1e-9)
         rng = self.rng
-        deadline = None if cfg.budget_ms is None else t0 + cfg.budget_ms / 1000.0
+        deadline = (None if cfg.budget_ms is None
+                    else t0 + cfg.budget_ms / 1000.0 - self.reserve_s)
+        t_init = time.perf_counter()
         max_iter = cfg.max_iterations if cfg.max_iterations is not None else 1 << 62
 
         def init_node(node: _Node) -> None:
@@ -321,11 +351,24 @@ class MctsPlanner:
         root = _Node(0, np.zeros(M, dtype=np.int64))
         init_node(root)
         iterations = 0
-        t_search = time.perf_counter()
+        # Deadline control, checked before every run: stop when the next run is expected to
+        # end past the deadline (t0 + budget - reserve: the set-up before the search counts,
+        # and the reserve absorbs the OS's preemptions, see _adapt_reserve). A run's
+        # cost is estimated by the slowest of the last RECENT_RUNS runs, not their mean: runs
+        # that expand a node cost more than the others, and on a loaded machine the OS takes
+        # the CPU away for milliseconds; both show up in recent runs first. With no time
+        # left after the set-up the search makes no run and the greedy action is taken.
+        recent: deque[float] = deque(maxlen=RECENT_RUNS)
+        t_prev = time.perf_counter()
+        if deadline is not None:
+            recent.append(t_prev - t_init)      # first estimate: the root's initialization
         while iterations < max_iter:
-            if deadline is not None and iterations > 0:
-                now = time.perf_counter()        # stop if one more run would overrun
-                if now + (now - t_search) / iterations >= deadline:
+            if deadline is not None:
+                now = time.perf_counter()
+                if iterations:
+                    recent.append(now - t_prev)
+                t_prev = now
+                if now + max(recent) >= deadline:
                     break
             iterations += 1
             node, path, tail = root, [], 0.0
@@ -357,6 +400,8 @@ class MctsPlanner:
                 node.visits += 1
                 node.n_a[j] += 1
                 node.w_a[j] += ret
+        if root.expanded == 0:                  # no run fitted: the best immediate gain
+            return subsets[root.order[0]], 0, 0.0
         n_a = root.n_a[:root.expanded]
         mean = root.w_a[:root.expanded] / np.maximum(n_a, 1)
         j = int(np.lexsort((-mean, -n_a))[0])          # most visits, then best mean
