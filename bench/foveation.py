@@ -7,7 +7,13 @@
   equations (the tests' ground truth), same parameters.
 - logpolar_fps: `LogPolarRetina(640, 480, 200, 200).to_cortex` (Gaussian RFs) of the same
   frames.
-- classify_ms, saliency_ms: null until the recognition model lands.
+- classify_ms: the packaged recognition CNN (foveation_node/models/foveation_cnn.pt, 227x227
+  input, torch on one thread) on one 640x480 RGB frame: resize, normalise, forward, softmax.
+- saliency_ms: the saliency maps of that frame's top-5 classes (Eqs. 2.19-2.20), one batched
+  forward + backward pass of 5 copies, as each pass of the node computes them.
+- two_pass_ms: the whole of Fig. 2.5 on one frame (`two_pass`: 6 foveations, 2 classifications,
+  2 batched saliency passes), what one recognition costs the node's worker.
+  All three are CPU milliseconds per call on one thread; null if the model is missing.
 
 Targets: foveation >= 200 frames/s and >= 10x the direct implementation. Rates are per
 CPU-second of this process's single thread (the cost on one core, robust to other load on a
@@ -35,6 +41,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'src' / 'foveation_
 from foveation_node.core.foveation import Foveator, foveate_reference  # noqa: E402
 from foveation_node.core.logpolar import LogPolarRetina  # noqa: E402
 from foveation_node.core.synthetic import pink_noise, to_uint8  # noqa: E402
+
+MODELS = (Path(__file__).resolve().parents[1] / 'src' / 'foveation_node' / 'foveation_node'
+          / 'models')
 
 W, H = 640, 480
 F0 = 100.0
@@ -98,10 +107,37 @@ def main() -> None:
           f'{sorted(set(retina.ring_levels.tolist()))}), to_retina {inverse[0]:.0f} '
           f'({inverse[1]:.0f})/s, point sampling {sample[0]:.0f} ({sample[1]:.0f})/s; '
           f'maps built in {build:.2f} s')
+    recognition = bench_recognition(frames, foveator)
     print(json.dumps({'fovea_fps_640x480': round(fovea[0], 1),
                       'naive_fps_640x480': round(naive[0], 2),
-                      'logpolar_fps': round(logpolar[0], 1),
-                      'classify_ms': None, 'saliency_ms': None}))
+                      'logpolar_fps': round(logpolar[0], 1), **recognition}))
+
+
+def bench_recognition(frames: list[np.ndarray], foveator: Foveator) -> dict[str, float | None]:
+    """classify_ms, saliency_ms and two_pass_ms of the packaged model (None if missing)."""
+    model, labels = MODELS / 'foveation_cnn.pt', MODELS / 'foveation_cnn.labels'
+    if not model.exists():
+        print(f'no recognition model at {model}: run train_foveation_classifier')
+        return {'classify_ms': None, 'saliency_ms': None, 'two_pass_ms': None}
+    import torch
+
+    from foveation_node.core.recognition import Classifier, two_pass
+    torch.set_num_threads(1)
+    clf = Classifier(model, labels)
+    top5 = list(np.argsort(-clf.classify(frames[0])[0])[:5])
+    classify = rate(lambda i: clf.classify(frames[i % 4]), 1.0, 20)
+    saliency = rate(lambda i: clf.saliency(frames[i % 4], top5), 1.0, 10)
+    saliency1 = rate(lambda i: clf.saliency(frames[i % 4], top5[:1]), 1.0, 10)
+    whole = rate(lambda i: two_pass(clf, frames[i % 4], (319.5, 239.5), foveator.foveate), 2.0, 5)
+    w, h = clf.preprocessing.input_size
+    print(f'recognition CNN at {w}x{h} ({sum(p.numel() for p in clf.model.parameters())} '
+          f'parameters, 1 torch thread), CPU ms per call (wall-clock in brackets): classify '
+          f'{1e3 / classify[0]:.1f} ({1e3 / classify[1]:.1f}); saliency of the top-5 '
+          f'{1e3 / saliency[0]:.1f} ({1e3 / saliency[1]:.1f}), of one class '
+          f'{1e3 / saliency1[0]:.1f}; two passes (Fig. 2.5) {1e3 / whole[0]:.0f} '
+          f'({1e3 / whole[1]:.0f})')
+    return {'classify_ms': round(1e3 / classify[0], 2), 'saliency_ms': round(1e3 / saliency[0], 2),
+            'two_pass_ms': round(1e3 / whole[0], 1)}
 
 
 if __name__ == '__main__':

@@ -8,6 +8,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    # the default recognition model (trained by train_classifier.py) travels with the package
+    package_data={package_name: ['models/*.pt', 'models/*.labels', 'models/*.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -24,6 +26,7 @@ setup(
     entry_points={
         'console_scripts': [
             'foveation = foveation_node.node:main',
+            'train_foveation_classifier = foveation_node.train_classifier:main',
         ],
     },
 )

@@ -19,14 +19,35 @@ i.e. the default is already right for a head that fixates.
 While /gaze/state says in_saccade, frames are dropped (saccadic suppression) if
 suppress_during_saccades. Bad input (an unsupported encoding, zero size, a fixation outside the
 image, too many levels for the image) is logged (throttled) and the frame skipped.
+
+Recognition (section 2.3.2, Fig. 2.5; core.recognition): at most recognition_rate_hz, the
+newest frame goes to a worker thread (at most one recognition in flight; a frame arriving while
+it is busy replaces the waiting one), which runs the two passes on the raw frame foveated at the
+fixation and at each pass-1 box centre, and publishes
+
+  /foveation/detections        active_vision_msgs/FoveatedDetectionArray, one per pass
+                               (pass_index 0, then 1), the frame's header
+
+and, with saccades_enabled, a GazeCommand on /gaze/command (MODE_FIXATION_POINT,
+MOTION_SACCADE, source 'foveation', priority 30, hold_time saccade_hold_time_s) toward the
+best pass-2 object: its box centre back-projected through /vizzy/left/camera_info to
+saccade_distance_m along the ray, in the frame's frame_id (the optical frame). No command while
+in a saccade, for a frame taken before the last saccade began, within saccade_min_interval_s of
+the previous one, for a score below saccade_min_score or a box centre within
+saccade_min_offset_px of the principal point. model_path / labels_path: a TorchScript file and
+its labels (package://foveation_node/... means inside the installed package; an empty
+model_path disables recognition); a file that does not load is logged and recognition stays off.
 Algorithms live in foveation_node.core; this module only wires them to topics and parameters.
 """
 
 from __future__ import annotations
 
 import array
+import importlib.util
 import math
+import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -34,6 +55,9 @@ import numpy as np
 
 from foveation_node.core.foveation import DEFAULT_F0, DEFAULT_LEVELS, PYRAMID_SIGMA_1, Foveator
 from foveation_node.core.image_checks import check_fixation
+from foveation_node.core.recognition import (
+    DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
+    back_project, saccade_target, two_pass)
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
 from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
@@ -42,12 +66,21 @@ Image = message('sensor_msgs/msg/Image')
 CompressedImage = message('sensor_msgs/msg/CompressedImage')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 GazeState = message('active_vision_msgs/msg/GazeState')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+FoveatedDetection = message('active_vision_msgs/msg/FoveatedDetection')
+FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
 
 INPUT_TOPIC = '/vizzy/left/image_raw'
 CAMERA_INFO_TOPIC = '/vizzy/left/camera_info'
 GAZE_STATE_TOPIC = '/gaze/state'
 OUTPUT_TOPIC = '/foveation/image'
 COMPRESSED_TOPIC = '/foveation/image/compressed'
+DETECTIONS_TOPIC = '/foveation/detections'
+GAZE_COMMAND_TOPIC = '/gaze/command'
+GAZE_SOURCE = 'foveation'
+GAZE_PRIORITY = 30          # saccades: above stereo_ses (20) and mot_planner (10)
+DEFAULT_MODEL = 'package://foveation_node/models/foveation_cnn.pt'
+DEFAULT_LABELS = 'package://foveation_node/models/foveation_cnn.labels'
 ENCODINGS = ('rgb8', 'bgr8')
 BANDWIDTH_LOG_PERIOD_S = 10.0
 WARN_PERIOD_S = 5.0
@@ -72,9 +105,46 @@ PARAMETERS: tuple[tuple[str, Any, str], ...] = (
     ('jpeg_quality', 90, f'JPEG quality of {COMPRESSED_TOPIC}, in [1, 100].'),
     ('max_width', 4096, 'Widest accepted input image [px], in [1, 16384]; wider are dropped.'),
     ('max_height', 4096, 'Tallest accepted input image [px], in [1, 16384]; taller are dropped.'),
+    ('model_path', DEFAULT_MODEL,
+     'TorchScript classifier (preprocessing from the .json beside it, else ImageNet 227x227); '
+     'package://<pkg>/<path> is inside an installed package; empty: no recognition.'),
+    ('labels_path', DEFAULT_LABELS, 'Class labels of model_path, one per line.'),
+    ('saliency_threshold', DEFAULT_THRESHOLD,
+     'Saliency mask threshold th (fraction of the map maximum), in (0, 1].'),
+    ('top_k', DEFAULT_TOP_K, 'Classes localised per pass (top-k), in [1, 100].'),
+    ('recognition_rate_hz', 2.0,
+     'Most recognitions (two passes) started per second, in (0, 100]; the newest frame wins.'),
+    ('recognition_threads', 1, 'Torch CPU threads for recognition, in [1, 64].'),
+    ('saccades_enabled', True,
+     f'Send saccades to the best detected object on {GAZE_COMMAND_TOPIC} (priority '
+     f'{GAZE_PRIORITY}).'),
+    ('saccade_hold_time_s', 1.0, 'hold_time of the saccade GazeCommands [s], in [0, 60].'),
+    ('saccade_min_interval_s', 2.0, 'Least time between two saccades [s], in [0, 600].'),
+    ('saccade_distance_m', 1.0,
+     'Distance along the pixel ray of the fixation point sent [m], in [0.1, 20].'),
+    ('saccade_min_score', 0.3, 'Least class probability worth a saccade, in [0, 1].'),
+    ('saccade_min_offset_px', 20.0,
+     'No saccade to a box centre this near the principal point [px], in [0, 10000].'),
 )
 # Parameters whose change needs a new Foveator.
 FOVEATOR_PARAMETERS = ('levels', 'f0', 'sigma_1')
+MODEL_PARAMETERS = ('model_path', 'labels_path', 'recognition_threads')
+# (name, low, high, low inclusive) of the numeric parameters added with recognition
+RANGES = {'saliency_threshold': (0.0, 1.0, False), 'recognition_rate_hz': (0.0, 100.0, False),
+          'saccade_hold_time_s': (0.0, 60.0, True), 'saccade_min_interval_s': (0.0, 600.0, True),
+          'saccade_distance_m': (0.1, 20.0, True), 'saccade_min_score': (0.0, 1.0, True),
+          'saccade_min_offset_px': (0.0, 10000.0, True)}
+
+
+def resolve_path(path: str) -> Path:
+    """A file path; package://<pkg>/<rest> is <rest> inside Python package <pkg>'s directory."""
+    if path.startswith('package://'):
+        pkg, _, rest = path[len('package://'):].partition('/')
+        spec = importlib.util.find_spec(pkg) if pkg else None
+        if spec is None or not spec.submodule_search_locations:
+            raise ModelError(f'{path}: no installed package {pkg!r}')
+        return Path(list(spec.submodule_search_locations)[0]) / rest
+    return Path(path).expanduser()
 
 
 def _is_number(value: Any) -> bool:
@@ -83,8 +153,15 @@ def _is_number(value: Any) -> bool:
 
 def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name, or None if it is."""
-    if name in ('follow_gaze', 'suppress_during_saccades'):
+    if name in ('follow_gaze', 'suppress_during_saccades', 'saccades_enabled'):
         return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
+    if name in ('model_path', 'labels_path'):
+        return None if isinstance(value, str) else f'{name} must be a string, got {value!r}'
+    if name in ('top_k', 'recognition_threads'):
+        high = 100 if name == 'top_k' else 64
+        if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= high:
+            return f'{name} must be an integer in [1, {high}], got {value!r}'
+        return None
     if not _is_number(value):
         return f'{name} must be a number, got {value!r}'
     if name in ('max_width', 'max_height') and not 1 <= value <= 16384:
@@ -101,6 +178,11 @@ def check_parameter(name: str, value: Any) -> str | None:
         return f'{name} must be finite, got {value}'
     if name == 'jpeg_quality' and not 1 <= value <= 100:
         return f'jpeg_quality must be in [1, 100], got {value}'
+    if name in RANGES:
+        low, high, closed = RANGES[name]
+        inside = (low <= value if closed else low < value) and value <= high
+        if not (math.isfinite(value) and inside):
+            return f'{name} must be in {"[" if closed else "("}{low:g}, {high:g}], got {value}'
     return None
 
 
@@ -173,19 +255,79 @@ class FoveationNode(Node):
             f'{COMPRESSED_TOPIC}: {p["levels"]} levels, f0 {p["f0"]:g} px, sigma_1 '
             f'{p["sigma_1"]:.4g} px, JPEG quality {p["jpeg_quality"]}')
 
+        # recognition (Fig. 2.5) in a worker thread; saccades on /gaze/command
+        self._camera_k: tuple[float, ...] | None = None
+        self._camera_size: tuple[int, int] | None = None
+        self._saccade_epoch = 0                 # +1 whenever a saccade starts
+        self._last_saccade = -math.inf          # time.monotonic() of our last command
+        self._last_handoff = -math.inf
+        self._classifier: Classifier | None = None
+        self._rec_foveator: Foveator | None = None
+        self.recognitions = 0
+        self.last_result: TwoPassResult | None = None
+        self.last_recognition_ms: float | None = None
+        self.saccades_sent = 0
+        self._wake = threading.Condition(threading.Lock())
+        self._pending: tuple[Any, ...] | None = None     # newest frame for the worker
+        self._stop = False
+        self._det_pub = self.create_publisher(FoveatedDetectionArray, DETECTIONS_TOPIC, 10)
+        self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
+        self._load_classifier()
+        self._worker = threading.Thread(target=self._work, name='foveation_recognition',
+                                        daemon=True)
+        self._worker.start()
+
+    def destroy_node(self) -> Any:
+        with self._wake:
+            self._stop = True
+            self._wake.notify()
+        if self._worker.is_alive() and self._worker is not threading.current_thread():
+            self._worker.join(timeout=30.0)
+        return super().destroy_node()
+
     # --- inputs ---------------------------------------------------------------------------------
 
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
         if any(name in changed for name in FOVEATOR_PARAMETERS):
             self._foveator = None   # rebuilt on the next frame, for that frame's size
+        if any(name in changed for name in MODEL_PARAMETERS):
+            self._load_classifier()
+
+    def _load_classifier(self) -> None:
+        """(Re)load model_path + labels_path; on failure log why and leave recognition off."""
+        self._classifier = None
+        model, labels = self._p['model_path'], self._p['labels_path']
+        if not model:
+            self.get_logger().info('model_path is empty: recognition off')
+            return
+        try:
+            import torch
+            torch.set_num_threads(self._p['recognition_threads'])
+            classifier = Classifier(resolve_path(model), resolve_path(labels))
+        except (ModelError, OSError) as exc:
+            self.get_logger().error(f'recognition off: {exc}')
+            return
+        self._classifier = classifier
+        w, h = classifier.preprocessing.input_size
+        self.get_logger().info(
+            f'recognising {classifier.num_classes} classes ({", ".join(classifier.labels[:8])}'
+            f'{", ..." if classifier.num_classes > 8 else ""}) with {model} at {w}x{h}, top-'
+            f'{self._p["top_k"]}, th {self._p["saliency_threshold"]:g}, at most '
+            f'{self._p["recognition_rate_hz"]:g} Hz; detections on {DETECTIONS_TOPIC}'
+            f'{", saccades on " + GAZE_COMMAND_TOPIC if self._p["saccades_enabled"] else ""}')
 
     def _on_gaze_state(self, msg: Any) -> None:
-        self._in_saccade = bool(msg.in_saccade)
+        in_saccade = bool(msg.in_saccade)
+        if in_saccade and not self._in_saccade:
+            self._saccade_epoch += 1            # frames from before it are stale for saccades
+        self._in_saccade = in_saccade
 
     def _on_camera_info(self, msg: Any) -> None:
         k = list(msg.k)
-        if len(k) == 9 and k[0] > 0 and math.isfinite(k[2]) and math.isfinite(k[5]):
+        if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
             self._principal_point = (float(k[2]), float(k[5]))
+            self._camera_k = tuple(float(v) for v in k)
+            self._camera_size = (int(msg.width), int(msg.height))
 
     def _warn(self, kind: str, text: str) -> None:
         """A warning at most once every WARN_PERIOD_S per kind of problem."""
@@ -234,6 +376,119 @@ class FoveationNode(Node):
         self._jpeg_pub.publish(compressed)
         self.frames_published += 1
         self._report_bandwidth(image, msg.encoding, len(jpeg), quality, fixation)
+        self._offer_recognition(image, msg, fixation)
+
+    # --- recognition ----------------------------------------------------------------------------
+
+    def _offer_recognition(self, image: np.ndarray, msg: Any,
+                           fixation: tuple[float, float]) -> None:
+        """Hand the frame to the worker (replacing one still waiting), at most at the rate."""
+        if self._classifier is None:
+            return
+        now = time.monotonic()
+        if now - self._last_handoff < 1.0 / self._p['recognition_rate_hz']:
+            return
+        self._last_handoff = now
+        with self._wake:
+            # image may view msg's buffer: keep msg alive with it
+            self._pending = (image, msg, fixation, self._saccade_epoch)
+            self._wake.notify()
+
+    def _work(self) -> None:
+        recognise = guarded(self, 'recognition failed on a frame', self.recognise)
+        while True:
+            with self._wake:
+                while self._pending is None and not self._stop:
+                    self._wake.wait(0.5)
+                if self._stop:
+                    return
+                job, self._pending = self._pending, None
+            recognise(*job)
+
+    def _recognition_foveator(self, width: int, height: int) -> Foveator:
+        p = self._p
+        key = (width, height, p['levels'], p['f0'], p['sigma_1'])
+        fov = self._rec_foveator
+        if fov is None or (fov.width, fov.height, fov.levels, fov.f0, fov.sigma_1) != key:
+            fov = Foveator(width, height, p['levels'], p['f0'], p['sigma_1'])
+            self._rec_foveator = fov
+        return fov
+
+    def recognise(self, image: np.ndarray, msg: Any, fixation: tuple[float, float],
+                  epoch: int) -> TwoPassResult | None:
+        """Both passes of Fig. 2.5 on one frame; publish them and maybe saccade (worker thread)."""
+        classifier = self._classifier
+        if classifier is None:
+            return None
+        t0 = time.perf_counter()
+        rgb = image if msg.encoding == 'rgb8' else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+        height, width = rgb.shape[:2]
+        try:
+            foveator = self._recognition_foveator(width, height)
+        except ValueError as exc:
+            self._warn('recognition', f'recognition skipped: {exc}')
+            return None
+        result = two_pass(classifier, rgb, fixation, foveator.foveate, self._p['top_k'],
+                          self._p['saliency_threshold'])
+        self.last_recognition_ms = 1000.0 * (time.perf_counter() - t0)
+        for detections in (result.first, result.second):
+            self._det_pub.publish(self._detection_array(msg.header, fixation, detections))
+        self.recognitions += 1
+        self.last_result = result
+        self._maybe_saccade(result.second, msg.header.frame_id, epoch, width, height)
+        return result
+
+    def _detection_array(self, header: Any, fixation: tuple[float, float],
+                         detections: list[Detection]) -> Any:
+        out = FoveatedDetectionArray()
+        out.header = header
+        out.fixation_u, out.fixation_v = float(fixation[0]), float(fixation[1])
+        out.fovea_size = float(self._p['f0'])
+        for d in detections:
+            det = FoveatedDetection(label=d.label, class_id=d.class_id, score=d.score,
+                                    fixation_u=d.fixation[0], fixation_v=d.fixation[1],
+                                    pass_index=d.pass_index)
+            x0, y0, x1, y1 = d.box
+            det.box.x_offset, det.box.y_offset = x0, y0
+            det.box.width, det.box.height = x1 - x0 + 1, y1 - y0 + 1
+            out.detections.append(det)
+        return out
+
+    def _maybe_saccade(self, detections: list[Detection], frame_id: str, epoch: int,
+                       width: int, height: int) -> None:
+        """A saccade GazeCommand toward the best detection, unless a rule says not now."""
+        p = self._p
+        if not p['saccades_enabled'] or self._in_saccade or epoch != self._saccade_epoch:
+            return                                   # eyes moving, or moved since the frame
+        now = time.monotonic()
+        if now - self._last_saccade < p['saccade_min_interval_s']:
+            return
+        k = self._camera_k
+        if k is None or self._camera_size != (width, height):
+            self._warn('camera_info', f'no saccade: no {CAMERA_INFO_TOPIC} for {width}x{height} '
+                       f'images yet (have {self._camera_size})')
+            return
+        if not frame_id:
+            self._warn('frame', f'no saccade: the image from {INPUT_TOPIC} has no frame_id')
+            return
+        target = saccade_target(detections, (k[2], k[5]), p['saccade_min_score'],
+                                p['saccade_min_offset_px'])
+        if target is None:
+            return
+        u, v = target.centre
+        x, y, z = back_project(u, v, k, p['saccade_distance_m'])
+        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
+                          motion=GazeCommand.MOTION_SACCADE, source=GAZE_SOURCE,
+                          priority=GAZE_PRIORITY, hold_time=float(p['saccade_hold_time_s']))
+        cmd.header.stamp = self.get_clock().now().to_msg()
+        cmd.header.frame_id = frame_id
+        cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = x, y, z
+        self._gaze_pub.publish(cmd)
+        self._last_saccade = now
+        self.saccades_sent += 1
+        self.get_logger().info(
+            f'saccade to {target.label} ({target.score:.2f}) at ({u:.0f}, {v:.0f}) px: '
+            f'({x:.3f}, {y:.3f}, {z:.3f}) m in {frame_id}')
 
     def _report_bandwidth(self, image: np.ndarray, encoding: str, foveated_bytes: int,
                           quality: int, fixation: tuple[float, float]) -> None:

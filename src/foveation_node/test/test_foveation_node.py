@@ -48,6 +48,23 @@ def test_parameter_checks() -> None:
     assert check('jpeg_quality', 1) is None
     assert check('fixation_u', float('inf')) and check('fixation_u', -1.0) is None
     assert check('follow_gaze', 1) and check('follow_gaze', True) is None
+    # recognition and saccades
+    assert check('saliency_threshold', 0.0) and check('saliency_threshold', 1.01)
+    assert check('saliency_threshold', 1.0) is None
+    assert check('top_k', 0) and check('top_k', 2.0) and check('top_k', 5) is None
+    assert check('recognition_rate_hz', 0.0) and check('recognition_rate_hz', 0.5) is None
+    assert check('model_path', 3) and check('model_path', '') is None
+    assert check('saccade_distance_m', 0.05) and check('saccade_min_score', float('nan'))
+    assert check('saccades_enabled', 'yes') and check('saccade_hold_time_s', 0.0) is None
+
+
+def test_package_paths_resolve_to_the_packaged_model() -> None:
+    model = node.resolve_path(node.DEFAULT_MODEL)
+    assert model.name == 'foveation_cnn.pt' and model.parent.name == 'models'
+    assert model.parent.parent == Path(node.__file__).parent
+    assert node.resolve_path('/tmp/x.pt') == Path('/tmp/x.pt')
+    with pytest.raises(ValueError, match='no installed package'):
+        node.resolve_path('package://no_such_package_here/x.pt')
 
 
 def test_fixation_defaults_to_the_centre_and_must_be_on_the_image() -> None:

@@ -5,6 +5,9 @@
 - information: energy and information of foveated images (Eqs. 2.5-2.18, Fig. 2.6).
 - logpolar: `LogPolarRetina`, a log-polar sensor with overlapping Gaussian receptive fields
   (Eq. 1.1, section 3.3.2), shared with the stereo node.
+- recognition: TorchScript classifier + labels, gradient saliency and its boxes (section
+  2.3.2, Eqs. 2.19-2.20), the two passes of Fig. 2.5 (torch).
+- object_views: single-object simulator renders to train and test the CNN (mujoco and
+  vizzy_sim_bridge; not imported by the node).
 - image_checks: input validation (clear ValueErrors); synthetic: seeded test images.
-Planned: detection, the feed-forward / feedback passes of the foveated CNN (Fig. 2.5).
 """

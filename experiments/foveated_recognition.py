@@ -1,0 +1,305 @@
+#!/usr/bin/env python3
+"""Thesis Figs. 2.7-2.9 in our setting: foveated recognition, first pass vs second pass.
+
+Held-out single-object views rendered by the simulator (core.object_views, a seed used neither
+for training nor for the training's held-out set): 640x480 left-eye images, each object
+anywhere in the image except the outer 8 % (off-centre). For every view, fovea size f_0 and
+initial fixation, `two_pass` (Fig. 2.5) foveates the image at the fixation (K = 5, sigma_1 =
+sqrt(8/3), the node's settings), classifies it with the packaged CNN (pass 1), localises its
+top-5 classes by gradient saliency (th = 0.7), re-foveates at each box centre and re-classifies
+(pass 2, best non-repeated labels).
+
+Initial fixations: the image centre ("centred") and a grid over the image (the thesis: an 8x8
+grid; here 4 columns x 3 rows, plus the centre), so most initial fixations are away from the
+object, as in Fig. 2.8. f_0 in {15, 30, 60, 100, 160, 250} px of the 640-px image, plus the
+unfoveated image (the thesis's baseline f_0 = 227 = its image size).
+
+Reported: top-1 / top-2 / top-5 error of pass 1 and pass 2 against f_0 (Fig. 2.7a, 2.9), for
+centred and non-centred fixations; error against the initial fixation (Fig. 2.8, as a grid and
+against the distance from the object); localisation error (no top-5 box with IoU >= 0.5 with
+the true box) against th (Fig. 2.7b / 2.10a), at f_0 = 100 with a centred fixation. With 7
+classes, top-5 is loose (5 of 7 labels); top-1 is the figure to read.
+
+Writes experiments/results/foveated_recognition.json, foveated_recognition.png (error vs f_0,
+error vs fixation, localisation vs th) and foveated_recognition_example.png (Fig. 2.5 on one
+view, f_0 = 60).
+
+    .venv/bin/python experiments/foveated_recognition.py [--per-class 8] [--quick]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ.setdefault(_var, '1')
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'src' / 'foveation_node'))
+from foveation_node.core.foveation import Foveator  # noqa: E402
+from foveation_node.core.recognition import Classifier, saliency_box, two_pass  # noqa: E402
+
+MODELS = ROOT / 'src' / 'foveation_node' / 'foveation_node' / 'models'
+W, H, LEVELS = 640, 480, 5
+F0S = (15.0, 30.0, 60.0, 100.0, 160.0, 250.0)
+GRID_U = tuple(W * (2 * i + 1) / 8 for i in range(4))       # 80, 240, 400, 560
+GRID_V = tuple(H * (2 * j + 1) / 6 for j in range(3))       # 80, 240, 400
+CENTRE = ((W - 1) / 2, (H - 1) / 2)
+THRESHOLDS = tuple(np.round(np.arange(0.1, 0.96, 0.05), 2))
+DIST_BINS = (0, 100, 200, 300, 400, 800)
+EXAMPLE_F0 = 60.0
+THESIS = {'max_second_pass_gain_non_centred': 0.43, 'max_second_pass_gain_centred': 0.10,
+          'classification_error_saturates_at_f0': 70, 'best_threshold': (0.65, 0.7)}
+
+
+def iou(a: tuple[int, ...], b: tuple[int, ...]) -> float:
+    ix = max(0, min(a[2], b[2]) - max(a[0], b[0]) + 1)
+    iy = max(0, min(a[3], b[3]) - max(a[1], b[1]) + 1)
+    inter = ix * iy
+    area = lambda r: (r[2] - r[0] + 1) * (r[3] - r[1] + 1)  # noqa: E731
+    return inter / float(area(a) + area(b) - inter)
+
+
+def rank_of(true: int, ranking: list[int]) -> int:
+    """0-based position of the true class in a ranking (len(ranking) if absent)."""
+    return ranking.index(true) if true in ranking else len(ranking)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--per-class', type=int, default=8, help='test views per class')
+    parser.add_argument('--seed', type=int, default=3000)
+    parser.add_argument('--quick', action='store_true', help='1 view per class, 3 f0 values')
+    parser.add_argument('--model', type=Path, default=MODELS / 'foveation_cnn.pt')
+    parser.add_argument('--labels', type=Path, default=MODELS / 'foveation_cnn.labels')
+    parser.add_argument('--out', type=Path, default=ROOT / 'experiments' / 'results')
+    parser.add_argument('--example-only', action='store_true',
+                        help='only the Fig. 2.5 example (f0 = 60) of the same views')
+    args = parser.parse_args()
+
+    import torch
+    from tqdm import tqdm
+
+    from foveation_node.core.object_views import CLASSES, ObjectViews
+
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    per_class = 1 if args.quick else args.per_class
+    f0s = (30.0, 100.0, 250.0) if args.quick else F0S
+    clf = Classifier(args.model, args.labels)
+    assert clf.labels == list(CLASSES), (clf.labels, CLASSES)
+    t0 = time.perf_counter()
+    with ObjectViews(W, H, seed=args.seed) as ov:
+        views = ov.dataset(per_class * len(CLASSES), seed=args.seed)
+    if args.example_only:
+        example(clf, views, Foveator(W, H, LEVELS, EXAMPLE_F0),
+                args.out / 'foveated_recognition_example.png')
+        return 0
+    fixations = [CENTRE] + [(u, v) for v in GRID_V for u in GRID_U]
+    foveators = {f0: Foveator(W, H, LEVELS, f0) for f0 in f0s}
+    identity = lambda img, fix: img  # noqa: E731  (uniform resolution: the baseline)
+
+    # rank of the true class: [view, f0 (last = unfoveated), fixation, pass]
+    settings = list(f0s) + [None]
+    ranks = np.zeros((len(views), len(settings), len(fixations), 2), int)
+    located = np.zeros((len(views), len(settings), len(fixations), 2), bool)
+    cases = [(i, s, j) for i in range(len(views)) for s in range(len(settings))
+             for j in range(len(fixations)) if settings[s] is not None or j == 0]
+    for i, s, j in tqdm(cases, desc='two passes', unit='case'):
+        view = views[i]
+        f0 = settings[s]
+        fov = identity if f0 is None else foveators[f0].foveate
+        res = two_pass(clf, view.rgb, fixations[j], fov, top_k=5, threshold=0.7)
+        first = list(np.argsort(-res.probs_first)[:5])
+        second = [d.class_id for d in res.second]
+        ranks[i, s, j] = rank_of(view.label, first), rank_of(view.label, second)
+        located[i, s, j] = (any(iou(d.box, view.box) >= 0.5 for d in res.first),
+                            any(iou(d.box, view.box) >= 0.5 for d in res.second))
+        if f0 is None:                       # no fovea: every fixation gives the same result
+            ranks[i, s, :] = ranks[i, s, 0]
+            located[i, s, :] = located[i, s, 0]
+
+    def error(sel: np.ndarray, k: int) -> float:
+        return float((sel >= k).mean())
+
+    centred = {'top1': [], 'top2': [], 'top5': []}
+    result: dict = {'views': len(views), 'per_class': per_class, 'classes': list(CLASSES),
+                    'f0_px': list(f0s), 'fixations_px': [list(map(float, f)) for f in fixations],
+                    'image': [W, H], 'levels': LEVELS, 'threshold': 0.7, 'top_k': 5,
+                    'by_f0': [], 'thesis': THESIS}
+    for s, f0 in enumerate(settings):
+        row = {'f0_px': 'unfoveated' if f0 is None else f0}
+        for name, sl in (('centred', slice(0, 1)), ('non_centred', slice(1, None))):
+            for p, pname in ((0, 'pass1'), (1, 'pass2')):
+                r = ranks[:, s, sl, p]
+                for k in (1, 2, 5):
+                    row[f'{name}_{pname}_top{k}_error'] = error(r, k)
+                row[f'{name}_{pname}_localisation_error'] = float(1 - located[:, s, sl, p].mean())
+        result['by_f0'].append(row)
+    foveated = [r for r in result['by_f0'] if r['f0_px'] != 'unfoveated']
+
+    def gain(r: dict, name: str) -> float:
+        return r[f'{name}_pass1_top1_error'] - r[f'{name}_pass2_top1_error']
+
+    where = ('centred', 'non_centred')
+    result['max_second_pass_gain_top1'] = {
+        name: max((gain(r, name), r['f0_px']) for r in foveated) for name in where}
+    result['mean_second_pass_gain_top1'] = {
+        name: float(np.mean([gain(r, name) for r in foveated])) for name in where}
+
+    # error against the initial fixation (Fig. 2.8): over all f0 (foveated settings only)
+    fo = slice(0, len(f0s))
+    grid = {p: (ranks[:, fo, 1:, i] >= 1).mean(axis=(0, 1)).reshape(len(GRID_V), len(GRID_U))
+            for i, p in enumerate(('pass1', 'pass2'))}
+    result['grid_top1_error'] = {p: g.round(4).tolist() for p, g in grid.items()}
+    dist = np.array([[np.hypot(f[0] - v.centre[0], f[1] - v.centre[1]) for f in fixations]
+                     for v in views])                                    # (views, fixations)
+    by_dist = []
+    for lo, hi in zip(DIST_BINS[:-1], DIST_BINS[1:]):
+        sel = (dist >= lo) & (dist < hi)                                  # (views, fixations)
+        if not sel.any():
+            continue
+        r = ranks[:, fo]                                                  # (views, f0, fix, 2)
+        m = np.broadcast_to(sel[:, None, :], r.shape[:3])
+        by_dist.append({'distance_px': [lo, hi], 'cases': int(m.sum()),
+                        'pass1_top1_error': float((r[..., 0][m] >= 1).mean()),
+                        'pass2_top1_error': float((r[..., 1][m] >= 1).mean())})
+    result['by_distance_top1'] = by_dist
+
+    # localisation error against th (Fig. 2.7b / 2.10a): f0 = 100, centred, pass-1 top-5 maps
+    loc_f0 = 100.0 if 100.0 in foveators else f0s[len(f0s) // 2]
+    loc_hits = np.zeros((len(views), len(THRESHOLDS)), bool)
+    for i, view in enumerate(tqdm(views, desc='thresholds', unit='view')):
+        img = foveators[loc_f0].foveate(view.rgb, CENTRE)
+        top = list(np.argsort(-clf.classify(img)[0])[:5])
+        maps = clf.saliency(img, top)
+        for t, th in enumerate(THRESHOLDS):
+            boxes = [clf.box_to_image(saliency_box(m, th), W, H) for m in maps]
+            loc_hits[i, t] = any(iou(b, view.box) >= 0.5 for b in boxes)
+    result['localisation_vs_threshold'] = {
+        'f0_px': loc_f0, 'thresholds': [float(t) for t in THRESHOLDS],
+        'error': [float(1 - loc_hits[:, t].mean()) for t in range(len(THRESHOLDS))]}
+    result['seconds'] = round(time.perf_counter() - t0, 1)
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    stem = 'foveated_recognition_quick' if args.quick else 'foveated_recognition'
+    plot(result, f0s, grid, args.out / f'{stem}.png')
+    example(clf, views, Foveator(W, H, LEVELS, EXAMPLE_F0), args.out / f'{stem}_example.png')
+    (args.out / f'{stem}.json').write_text(json.dumps(rounded(result), indent=1) + '\n')
+
+    base = result['by_f0'][-1]
+    print(f'{len(views)} views, {len(cases)} two-pass cases in {result["seconds"]:.0f} s')
+    print('top-1 error, pass 1 -> pass 2 (centred | non-centred):')
+    for r in result['by_f0']:
+        print(f'  f0 {r["f0_px"]!s:>10}: {r["centred_pass1_top1_error"]:.3f} -> '
+              f'{r["centred_pass2_top1_error"]:.3f} | {r["non_centred_pass1_top1_error"]:.3f} -> '
+              f'{r["non_centred_pass2_top1_error"]:.3f}')
+    print(f'unfoveated top-1 error {base["centred_pass1_top1_error"]:.3f}; max top-1 gain of pass '
+          f'2: centred {result["max_second_pass_gain_top1"]["centred"]}, non-centred '
+          f'{result["max_second_pass_gain_top1"]["non_centred"]} (thesis: 0.10, 0.43)')
+    print(json.dumps({'non_centred_max_gain': result['max_second_pass_gain_top1']['non_centred'][0],
+                      'centred_max_gain': result['max_second_pass_gain_top1']['centred'][0],
+                      'unfoveated_top1_error': base['centred_pass1_top1_error']}))
+    return 0
+
+
+def rounded(value: object, digits: int = 4) -> object:
+    if isinstance(value, float):
+        return round(value, digits)
+    if isinstance(value, dict):
+        return {k: rounded(v, digits) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [rounded(v, digits) for v in value]
+    return value
+
+
+def plot(result: dict, f0s: tuple[float, ...], grid: dict[str, np.ndarray], path: Path) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 4, figsize=(19, 4.3))
+    rows = [r for r in result['by_f0'] if r['f0_px'] != 'unfoveated']
+    base = result['by_f0'][-1]
+    x = [r['f0_px'] for r in rows]
+    for name, colour in (('centred', 'tab:blue'), ('non_centred', 'tab:red')):
+        for p, style in (('pass1', '--'), ('pass2', '-')):
+            ax[0].plot(x, [r[f'{name}_{p}_top1_error'] for r in rows], style, color=colour,
+                       marker='o', label=f'{name.replace("_", "-")}, {p[:4]} {p[-1]}')
+    ax[0].axhline(base['centred_pass1_top1_error'], color='k', lw=0.8, ls=':',
+                  label='unfoveated (baseline)')
+    ax[0].set(xlabel='f0 [px of 640x480]', ylabel='top-1 error', xscale='log',
+              title='top-1 error vs fovea size (Figs. 2.7a, 2.9)', ylim=(0, 1))
+    ax[0].legend(fontsize=7)
+    for name, colour in (('centred', 'tab:blue'), ('non_centred', 'tab:red')):
+        for p, style in (('pass1', '--'), ('pass2', '-')):
+            ax[1].plot(x, [r[f'{name}_{p}_top5_error'] for r in rows], style, color=colour,
+                       marker='o', label=f'{name.replace("_", "-")}, {p[:4]} {p[-1]}')
+    ax[1].set(xlabel='f0 [px]', ylabel='top-5 error (7 classes)', xscale='log',
+              title='top-5 error vs fovea size', ylim=(0, 0.5))
+    ax[1].legend(fontsize=7)
+    for a in ax[:2]:
+        a.set_xticks(x, [f'{v:g}' for v in x])
+        a.minorticks_off()
+    vmax = max(g.max() for g in grid.values())
+    both = np.hstack([grid['pass1'], np.full((grid['pass1'].shape[0], 1), np.nan), grid['pass2']])
+    im = ax[2].imshow(both, cmap='gray', vmin=0, vmax=vmax)
+    for (r, c), val in np.ndenumerate(both):
+        if np.isfinite(val):
+            ax[2].text(c, r, f'{val:.2f}', ha='center', va='center', color='tab:orange', fontsize=8)
+    ax[2].set(title='top-1 error vs initial fixation\n(grid over the image; pass 1 | pass 2; '
+              'all f0)', xticks=[], yticks=[])
+    fig.colorbar(im, ax=ax[2], fraction=0.03)
+    loc = result['localisation_vs_threshold']
+    ax[3].plot(loc['thresholds'], loc['error'], 'k-o', ms=3)
+    ax[3].set(xlabel='threshold th', ylabel='localisation error (IoU < 0.5)',
+              title=f'localisation vs th (f0 = {loc["f0_px"]:g}, centred)', ylim=(0, 1))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def example(clf: Classifier, views: list, foveator: Foveator, path: Path) -> None:
+    """Fig. 2.5 on one view: pass 1 at the centre with its top-5 boxes (red), pass 2 with the
+    fovea on the best box (green; the true box in cyan). The view: the one farthest from the
+    centre whose pass 1 is wrong and pass 2 right (else the farthest)."""
+    by_distance = sorted(views, key=lambda v: -np.hypot(v.centre[0] - CENTRE[0],
+                                                        v.centre[1] - CENTRE[1]))
+    view, res = by_distance[0], None
+    for candidate in by_distance:
+        r = two_pass(clf, candidate.rgb, CENTRE, foveator.foveate, 5, 0.7)
+        if r.first[0].class_id != candidate.label and r.second[0].class_id == candidate.label:
+            view, res = candidate, r
+            break
+    if res is None:
+        res = two_pass(clf, view.rgb, CENTRE, foveator.foveate, 5, 0.7)
+    one = cv2.cvtColor(foveator.foveate(view.rgb, CENTRE), cv2.COLOR_RGB2BGR)
+    best = res.second[0]
+    two = cv2.cvtColor(foveator.foveate(view.rgb, best.fixation), cv2.COLOR_RGB2BGR)
+    for d in res.first:
+        cv2.rectangle(one, d.box[:2], d.box[2:], (0, 0, 255), 2)
+        cv2.putText(one, f'{d.label} {d.score:.2f}', (d.box[0], max(12, d.box[1] - 4)), 0, 0.5,
+                    (0, 0, 255), 1)
+    cv2.circle(one, tuple(int(c) for c in CENTRE), int(foveator.f0), (255, 255, 255), 1)
+    cv2.rectangle(two, best.box[:2], best.box[2:], (0, 255, 0), 2)
+    cv2.putText(two, f'{best.label} {best.score:.2f}', (best.box[0], max(12, best.box[1] - 4)), 0,
+                0.6, (0, 255, 0), 2)
+    cv2.circle(two, tuple(int(c) for c in best.fixation), int(foveator.f0), (255, 255, 255), 1)
+    cv2.rectangle(two, view.box[:2], view.box[2:], (255, 255, 0), 1)
+    cv2.putText(one, f'pass 1 at the centre (true: {clf.labels[view.label]})', (8, H - 10), 0,
+                0.6, (255, 255, 255), 2)
+    cv2.putText(two, 'pass 2, fovea on the best box', (8, H - 10), 0, 0.6, (255, 255, 255), 2)
+    cv2.imwrite(str(path), np.hstack([one, two]))
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,335 @@
+"""Foveated CNN recognition with gradient saliency and two-pass saccades (thesis section 2.3.2,
+Fig. 2.5).
+
+- `Classifier`: any TorchScript image classifier plus a labels file (one label per line) and
+  an optional preprocessing JSON next to the model (`<model>.json`: input size, mean, std);
+  without it, ImageNet's 227x227 and mean/std. Images of any size are resized (squashed) to the
+  network input.
+- `Classifier.saliency`: the class saliency map of Eqs. 2.19-2.20, |d S_c / d I| (S_c the
+  class score before the softmax) with the maximum magnitude over the colour channels,
+  normalised to [0, 1]; `saliency_box`: the bounding box of the pixels above th (section
+  2.3.2, "Bounding Box Object Localization"), mapped back to the image's pixels.
+- `two_pass`: Fig. 2.5. Pass 1 classifies the image foveated at the initial fixation and
+  localises its top-k classes; the fovea moves to each box centre and pass 2 re-classifies
+  the k re-foveated images (one batched forward pass); the k x k labels are sorted by score
+  and the best non-repeated ones are the result.
+
+ROS-free: numpy, OpenCV and torch only.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import cv2
+import numpy as np
+import torch
+
+DEFAULT_INPUT_SIZE = (227, 227)                      # (width, height), as the thesis's CNNs
+IMAGENET_MEAN = (0.485, 0.456, 0.406)                # RGB, of pixels scaled to [0, 1]
+IMAGENET_STD = (0.229, 0.224, 0.225)
+DEFAULT_THRESHOLD = 0.7                              # th of the segmentation mask (Fig. 2.9)
+DEFAULT_TOP_K = 5
+
+Box = tuple[int, int, int, int]                      # (x0, y0, x1, y1), inclusive, image px
+Foveate = Callable[[np.ndarray, tuple[float, float]], np.ndarray]
+
+
+class ModelError(ValueError):
+    """A model, labels or preprocessing file that cannot be used (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Preprocessing:
+    """How an RGB uint8 image becomes the network's input: resized to input_size (w, h),
+    scaled to [0, 1], then (x - mean) / std per channel."""
+
+    input_size: tuple[int, int] = DEFAULT_INPUT_SIZE
+    mean: tuple[float, float, float] = IMAGENET_MEAN
+    std: tuple[float, float, float] = IMAGENET_STD
+
+    def as_dict(self) -> dict[str, list[float] | list[int]]:
+        return {'input_size': list(self.input_size), 'mean': list(self.mean),
+                'std': list(self.std)}
+
+
+def preprocessing_path_for(model_path: str | Path) -> Path:
+    """The preprocessing JSON that goes with a model: the model's path with .json."""
+    return Path(model_path).with_suffix('.json')
+
+
+def load_labels(path: str | Path) -> list[str]:
+    """Class labels, one per line (blank lines and surrounding spaces ignored)."""
+    try:
+        text = Path(path).read_text(encoding='utf-8')
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f'cannot read labels file {path}: {exc}') from exc
+    labels = [line.strip() for line in text.splitlines() if line.strip()]
+    if not labels:
+        raise ModelError(f'labels file {path} holds no labels')
+    return labels
+
+
+def load_preprocessing(path: str | Path | None) -> Preprocessing:
+    """The preprocessing JSON at path ({"input_size": [w, h], "mean": [3], "std": [3]}, each key
+    optional); ImageNet's defaults if path is None or does not exist."""
+    if path is None or not Path(path).exists():
+        return Preprocessing()
+    try:
+        raw = json.loads(Path(path).read_text(encoding='utf-8'))
+        size = tuple(int(v) for v in raw.get('input_size', DEFAULT_INPUT_SIZE))
+        mean = tuple(float(v) for v in raw.get('mean', IMAGENET_MEAN))
+        std = tuple(float(v) for v in raw.get('std', IMAGENET_STD))
+    except (OSError, ValueError, TypeError, AttributeError) as exc:
+        raise ModelError(f'cannot read preprocessing file {path}: {exc}') from exc
+    if len(size) != 2 or min(size) < 8 or len(mean) != 3 or len(std) != 3 or min(std) <= 0:
+        raise ModelError(f'preprocessing file {path}: need input_size [w >= 8, h >= 8], 3 means '
+                         f'and 3 positive stds, got {raw}')
+    return Preprocessing(size, mean, std)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class Detection:
+    """One class found in one pass: its label, probability, saliency box (image px) and the
+    fixation of the pass that found it."""
+
+    class_id: int
+    label: str
+    score: float
+    box: Box
+    fixation: tuple[float, float]
+    pass_index: int
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        x0, y0, x1, y1 = self.box
+        return ((x0 + x1) / 2.0, (y0 + y1) / 2.0)
+
+
+@dataclass
+class TwoPassResult:
+    """first: pass 1's top-k (boxes from its saliency); second: the best non-repeated labels of
+    pass 2 (boxes from the saliency of each label on the image it was found in);
+    probs_first: pass 1's class probabilities; probs_second: (k, C), one row per box centre."""
+
+    first: list[Detection]
+    second: list[Detection]
+    probs_first: np.ndarray
+    probs_second: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+
+class Classifier:
+    """A TorchScript classifier with its labels and preprocessing (see the module docstring).
+
+    Raises ModelError when the model file does not load, does not run on an image of its input
+    size, or gives another number of outputs than there are labels.
+    """
+
+    def __init__(self, model_path: str | Path, labels_path: str | Path,
+                 preprocessing_path: str | Path | None = None) -> None:
+        self.labels = load_labels(labels_path)
+        self.preprocessing = load_preprocessing(
+            preprocessing_path if preprocessing_path is not None
+            else preprocessing_path_for(model_path))
+        try:
+            with warnings.catch_warnings():   # torch >= 2.9 deprecates TorchScript; it still runs
+                warnings.simplefilter('ignore', DeprecationWarning)
+                self.model = torch.jit.load(str(model_path), map_location='cpu')
+        except Exception as exc:  # RuntimeError, ValueError, OSError: all mean "not a model"
+            raise ModelError(f'cannot load TorchScript model {model_path}: '
+                             f'{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ""}'
+                             ) from exc
+        self.model.eval()
+        for param in self.model.parameters():   # saliency needs d/d input only
+            param.requires_grad_(False)
+        w, h = self.preprocessing.input_size
+        mean = torch.tensor(self.preprocessing.mean, dtype=torch.float32).view(1, 3, 1, 1)
+        std = torch.tensor(self.preprocessing.std, dtype=torch.float32).view(1, 3, 1, 1)
+        self._scale = 1.0 / (255.0 * std)            # x_net = x_uint8 * scale + shift
+        self._shift = -mean / std
+        try:
+            with torch.inference_mode():
+                out = self.model(torch.zeros(1, 3, h, w))
+        except Exception as exc:
+            raise ModelError(f'model {model_path} fails on a 1x3x{h}x{w} input: '
+                             f'{type(exc).__name__}: {exc}') from exc
+        if not isinstance(out, torch.Tensor) or out.shape != (1, len(self.labels)):
+            shape = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+            raise ModelError(f'model {model_path} outputs {shape} for one image, but '
+                             f'{labels_path} has {len(self.labels)} labels')
+
+    @property
+    def num_classes(self) -> int:
+        return len(self.labels)
+
+    # ----------------------------------------------------------------------------------------
+
+    def preprocess(self, images: np.ndarray | Sequence[np.ndarray]) -> torch.Tensor:
+        """(N, 3, h, w) float32 network input of RGB uint8 images (one (H, W, 3) or a list);
+        each is resized to the input size (cv2.INTER_AREA when shrinking)."""
+        if isinstance(images, np.ndarray) and images.ndim == 3:
+            images = [images]
+        w, h = self.preprocessing.input_size
+        batch = np.empty((len(images), h, w, 3), np.uint8)
+        for i, img in enumerate(images):
+            if img.ndim != 3 or img.shape[2] != 3:
+                raise ValueError(f'expected an (H, W, 3) RGB image, got shape {img.shape}')
+            shrink = img.shape[0] >= h and img.shape[1] >= w
+            batch[i] = img if img.shape[:2] == (h, w) else cv2.resize(
+                img, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        x = torch.from_numpy(batch).permute(0, 3, 1, 2).float()
+        return x * self._scale + self._shift
+
+    def logits(self, x: torch.Tensor) -> torch.Tensor:
+        return self.model(x)
+
+    def classify(self, images: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
+        """(N, C) class probabilities (softmax of the scores) of RGB uint8 images."""
+        with torch.inference_mode():
+            return torch.softmax(self.model(self.preprocess(images)), dim=1).numpy()
+
+    def saliency(self, images: np.ndarray | Sequence[np.ndarray],
+                 classes: Sequence[int]) -> np.ndarray:
+        """(N, h, w) class saliency maps (Eqs. 2.19-2.20) in network-input pixels, in [0, 1].
+
+        Map i is |d S_c / d I| of class classes[i] on image i (one image: the same image for
+        every class), max over colour channels, divided by its maximum. One batched backward
+        pass: the sum of the chosen scores, each depending on its own copy of the input only.
+        """
+        if isinstance(images, np.ndarray) and images.ndim == 3:
+            x = self.preprocess(images).expand(len(classes), -1, -1, -1).clone()
+        else:
+            x = self.preprocess(images)
+        if x.shape[0] != len(classes):
+            raise ValueError(f'{x.shape[0]} images for {len(classes)} classes')
+        x.requires_grad_(True)
+        with torch.enable_grad():
+            scores = self.model(x)
+            idx = torch.as_tensor(list(classes), dtype=torch.long)
+            scores.gather(1, idx[:, None]).sum().backward()
+        grad = x.grad.abs().amax(dim=1)                               # (N, h, w)
+        peak = grad.flatten(1).amax(dim=1).clamp_min(1e-12)
+        return (grad / peak[:, None, None]).numpy()
+
+    def box_to_image(self, box: Box, width: int, height: int) -> Box:
+        """A box in network-input pixels as a box in a width x height image's pixels."""
+        w, h = self.preprocessing.input_size
+        sx, sy = width / w, height / h
+        x0, y0, x1, y1 = box
+        return (int(math.floor(x0 * sx)), int(math.floor(y0 * sy)),
+                min(int(math.ceil((x1 + 1) * sx)) - 1, width - 1),
+                min(int(math.ceil((y1 + 1) * sy)) - 1, height - 1))
+
+
+def saliency_box(saliency: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> Box:
+    """Bounding box (x0, y0, x1, y1) of the pixels whose saliency exceeds threshold times the
+    map's maximum (the segmentation mask of section 2.3.2); the peak pixel if none does."""
+    peak = float(saliency.max())
+    mask = saliency > threshold * peak if peak > 0 else saliency >= peak
+    if not mask.any():
+        mask = saliency >= peak
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    return (int(cols[0]), int(rows[0]), int(cols[-1]), int(rows[-1]))
+
+
+def localise(classifier: Classifier, image: np.ndarray, classes: Sequence[int],
+             threshold: float = DEFAULT_THRESHOLD,
+             net_input: np.ndarray | Sequence[np.ndarray] | None = None) -> list[Box]:
+    """Saliency boxes (image px) of classes on image (or on the images of net_input, one per
+    class, all of image's size)."""
+    maps = classifier.saliency(image if net_input is None else net_input, classes)
+    h, w = image.shape[:2]
+    return [classifier.box_to_image(saliency_box(m, threshold), w, h) for m in maps]
+
+
+def merge_second_pass(probs: np.ndarray, top_k: int) -> list[tuple[int, int, float]]:
+    """Fig. 2.5's choice: the k x k (class, score) pairs of pass 2 (row i: the image foveated at
+    box i), sorted by score, the best non-repeated classes first. Returns up to top_k
+    (class, row, score)."""
+    k = min(top_k, probs.shape[1])
+    top = np.argsort(-probs, axis=1)[:, :k]                     # (rows, k)
+    rows = np.repeat(np.arange(probs.shape[0]), k)
+    cls = top.ravel()
+    score = probs[rows, cls]
+    order = np.argsort(-score, kind='stable')
+    out: list[tuple[int, int, float]] = []
+    seen: set[int] = set()
+    for i in order:
+        c = int(cls[i])
+        if c not in seen:
+            seen.add(c)
+            out.append((c, int(rows[i]), float(score[i])))
+            if len(out) == k:
+                break
+    return out
+
+
+def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, float],
+             foveate: Foveate, top_k: int = DEFAULT_TOP_K,
+             threshold: float = DEFAULT_THRESHOLD, localise_second: bool = True) -> TwoPassResult:
+    """Fig. 2.5 on an RGB uint8 image: pass 1 at fixation, pass 2 at each pass-1 box centre.
+
+    foveate(image, (u, v)) gives the image foveated at (u, v) (same size), e.g.
+    `Foveator.foveate`; pass lambda img, fix: img for a uniform-resolution sensor.
+    localise_second: also compute each pass-2 label's box (one more batched backward pass).
+    """
+    k = min(int(top_k), classifier.num_classes)
+    if k < 1:
+        raise ValueError(f'top_k must be >= 1, got {top_k}')
+    fixation = (float(fixation[0]), float(fixation[1]))
+    first_image = foveate(image, fixation)
+    probs1 = classifier.classify(first_image)[0]
+    classes1 = [int(c) for c in np.argsort(-probs1)[:k]]
+    boxes1 = localise(classifier, first_image, classes1, threshold)
+    first = [Detection(c, classifier.labels[c], float(probs1[c]), b, fixation, 0)
+             for c, b in zip(classes1, boxes1)]
+
+    centres = [d.centre for d in first]
+    second_images = [foveate(image, c) for c in centres]
+    probs2 = classifier.classify(second_images)
+    chosen = merge_second_pass(probs2, k)
+    if localise_second and chosen:
+        boxes2 = localise(classifier, image, [c for c, _, _ in chosen], threshold,
+                          net_input=[second_images[r] for _, r, _ in chosen])
+    else:
+        boxes2 = [first[r].box for _, r, _ in chosen]
+    second = [Detection(c, classifier.labels[c], s, b, centres[r], 1)
+              for (c, r, s), b in zip(chosen, boxes2)]
+    return TwoPassResult(first, second, probs1, probs2)
+
+
+def back_project(u: float, v: float, k: Sequence[float],
+                 distance: float) -> tuple[float, float, float]:
+    """The point at distance [m] along the ray of pixel (u, v) in the camera's optical frame
+    (x right, y down, z forward), for a camera matrix k (row-major 3x3, as CameraInfo.k)."""
+    fx, cx, fy, cy = float(k[0]), float(k[2]), float(k[4]), float(k[5])
+    ray = np.array([(u - cx) / fx, (v - cy) / fy, 1.0])
+    p = distance * ray / np.linalg.norm(ray)
+    return (float(p[0]), float(p[1]), float(p[2]))
+
+
+def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
+                   min_score: float, min_offset_px: float) -> Detection | None:
+    """The detection to saccade to: the best-scoring one (detections come best first) if its
+    score is at least min_score and its box centre lies at least min_offset_px from centre
+    (the pixel the eyes already fixate: nothing to gain from a saccade of a few pixels)."""
+    if not detections:
+        return None
+    best = max(detections, key=lambda d: d.score)
+    if best.score < min_score:
+        return None
+    du, dv = best.centre[0] - centre[0], best.centre[1] - centre[1]
+    return best if math.hypot(du, dv) >= min_offset_px else None
+
+
+__all__ = ['Box', 'Classifier', 'DEFAULT_INPUT_SIZE', 'DEFAULT_THRESHOLD', 'DEFAULT_TOP_K',
+           'Detection', 'IMAGENET_MEAN', 'IMAGENET_STD', 'ModelError', 'Preprocessing',
+           'TwoPassResult', 'back_project', 'load_labels', 'load_preprocessing', 'localise',
+           'merge_second_pass', 'preprocessing_path_for', 'saccade_target', 'saliency_box',
+           'two_pass']

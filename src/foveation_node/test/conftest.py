@@ -1,0 +1,46 @@
+"""Fixtures of the foveation tests: a tiny TorchScript classifier built in the test.
+
+The stub's class scores are colour detectors: class c's score is the strongest response, over
+the image, of a 5x5 box filter on colour channel c (red, green, blue), so its saliency
+(d score / d input) sits in the 5x5 window on the most colourful spot, and it ranks images by
+which colour patch they hold. No training: the weights are fixed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+from torch import nn
+
+STUB_LABELS = ('red', 'green', 'blue')
+
+
+class ColourDetector(nn.Module):
+    """(N, 3, h, w) -> (N, 3): per channel, the max over space of a 5x5 mean filter."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.conv = nn.Conv2d(3, 3, 5, padding=2, groups=3, bias=False)
+        with torch.no_grad():
+            self.conv.weight.fill_(1.0 / 25.0)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        # a channel counts only where it exceeds the other two (colour, not brightness)
+        excess = 2.0 * x - x.sum(dim=1, keepdim=True) + x
+        return torch.relu(self.conv(excess)).amax(dim=(2, 3)) * 4.0
+
+
+def save_stub(directory: Path, labels: tuple[str, ...] = STUB_LABELS) -> tuple[Path, Path]:
+    """Write the stub model (stub.pt) and its labels (stub.labels) under directory."""
+    model = torch.jit.script(ColourDetector().eval())
+    model_path, labels_path = directory / 'stub.pt', directory / 'stub.labels'
+    model.save(str(model_path))
+    labels_path.write_text('\n'.join(labels) + '\n')
+    return model_path, labels_path
+
+
+@pytest.fixture
+def stub_model(tmp_path: Path) -> tuple[Path, Path]:
+    return save_stub(tmp_path)

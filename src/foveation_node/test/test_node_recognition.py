@@ -1,0 +1,175 @@
+"""The foveation node's recognition live on the bundled runtime: detections per pass and saccades.
+
+The classifier is conftest's stub colour detector (no training); a test node publishes
+images, camera_info and gaze states and listens to /foveation/detections and /gaze/command.
+Nothing asserts on wall-clock time: the tests wait for conditions.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from foveation_node import node as fov_node
+from vizzy_runtime.convert import numpy_to_image
+from vizzy_runtime.ros import message, qos_profile_sensor_data
+from vizzy_runtime.rclpy_compat.context import Context
+from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
+from vizzy_runtime.rclpy_compat.node import Node
+from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.testing import wait_until
+
+GazeState = message('active_vision_msgs/msg/GazeState')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
+Image = message('sensor_msgs/msg/Image')
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
+
+TIMEOUT = 30.0
+WIDTH, HEIGHT = 320, 240
+FX = 180.0
+PATCH = (260, 60)                 # a red patch up and to the right of the centre
+FRAME = 'left_camera_optical_frame'
+
+
+class Camera(Node):
+    """Publishes images, camera_info and gaze states; keeps detections and gaze commands."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__('fake_camera', context=context, start_parameter_services=False)
+        self.detections: list[Any] = []
+        self.commands: list[Any] = []
+        self.image_pub = self.create_publisher(Image, fov_node.INPUT_TOPIC, qos_profile_sensor_data)
+        self.info_pub = self.create_publisher(CameraInfo, fov_node.CAMERA_INFO_TOPIC,
+                                              qos_profile_sensor_data)
+        self.gaze_pub = self.create_publisher(GazeState, fov_node.GAZE_STATE_TOPIC, 10)
+        self.create_subscription(FoveatedDetectionArray, fov_node.DETECTIONS_TOPIC,
+                                 self.detections.append, 10)
+        self.create_subscription(GazeCommand, fov_node.GAZE_COMMAND_TOPIC, self.commands.append, 10)
+
+
+def _camera_info() -> Any:
+    info = CameraInfo(width=WIDTH, height=HEIGHT)
+    info.header.frame_id = FRAME
+    info.k = [FX, 0.0, (WIDTH - 1) / 2, 0.0, FX, (HEIGHT - 1) / 2, 0.0, 0.0, 1.0]
+    return info
+
+
+def _image_msg() -> Any:
+    img = np.full((HEIGHT, WIDTH, 3), 40, np.uint8)
+    u, v = PATCH
+    img[v - 12:v + 12, u - 12:u + 12] = (230, 30, 30)
+    msg = numpy_to_image(img, 'rgb8')
+    msg.header.frame_id = FRAME
+    msg.header.stamp.sec = 7
+    return msg
+
+
+@pytest.fixture
+def graph(context, stub_model):
+    model, labels = stub_model
+    camera = Camera(context)
+    foveation = fov_node.FoveationNode(context=context, parameter_overrides=[
+        Parameter('model_path', value=str(model)), Parameter('labels_path', value=str(labels)),
+        Parameter('f0', value=30.0), Parameter('recognition_rate_hz', value=50.0),
+        Parameter('top_k', value=3), Parameter('saccade_min_interval_s', value=0.0)])
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(camera)
+    executor.add_node(foveation)
+    assert wait_until(lambda: camera.image_pub.get_subscription_count() > 0
+                      and camera.info_pub.get_subscription_count() > 0
+                      and foveation._det_pub.get_subscription_count() > 0
+                      and foveation._gaze_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    try:
+        yield camera, foveation, executor
+    finally:
+        executor.remove_node(camera)
+        executor.remove_node(foveation)
+        foveation.destroy_node()
+        camera.destroy_node()
+
+
+def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:
+    """Publish camera_info and msg every 0.2 s (best effort QoS) until done()."""
+    for _ in range(int(TIMEOUT / 0.2)):
+        camera.info_pub.publish(_camera_info())
+        camera.image_pub.publish(msg)
+        if wait_until(done, 0.2, spin=executor):
+            return True
+    return False
+
+
+def test_detections_per_pass_and_a_saccade_to_the_object(graph) -> None:
+    camera, foveation, executor = graph
+    assert foveation._classifier is not None
+    assert _send_until(camera, executor, _image_msg(),
+                       lambda: len(camera.detections) >= 2 and camera.commands)
+    first, second = camera.detections[0], camera.detections[1]
+    assert [d.pass_index for d in first.detections] == [0, 0, 0]
+    assert {d.pass_index for d in second.detections} == {1}
+    assert first.header.frame_id == FRAME and first.header.stamp.sec == 7
+    assert (first.fixation_u, first.fixation_v) == ((WIDTH - 1) / 2, (HEIGHT - 1) / 2)
+    assert first.fovea_size == 30.0
+    best = second.detections[0]
+    assert best.label == 'red' and best.class_id == 0 and best.score > 0.9
+    box = best.box
+    cu, cv = box.x_offset + box.width / 2, box.y_offset + box.height / 2
+    assert abs(cu - PATCH[0]) < 20 and abs(cv - PATCH[1]) < 20
+    # pass 2 of the red label looked with the fovea on the patch
+    assert abs(best.fixation_u - PATCH[0]) < 20 and abs(best.fixation_v - PATCH[1]) < 20
+
+    cmd = camera.commands[0]
+    assert cmd.source == 'foveation' and cmd.priority == 30
+    assert cmd.mode == GazeCommand.MODE_FIXATION_POINT
+    assert cmd.motion == GazeCommand.MOTION_SACCADE
+    assert cmd.header.frame_id == FRAME and cmd.hold_time == 1.0
+    p = np.array([cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z])
+    assert np.linalg.norm(p) == pytest.approx(1.0)             # saccade_distance_m
+    # the ray through the patch: right (x > 0) and up (y < 0) of the optical axis
+    u = FX * p[0] / p[2] + (WIDTH - 1) / 2
+    v = FX * p[1] / p[2] + (HEIGHT - 1) / 2
+    assert math.hypot(u - PATCH[0], v - PATCH[1]) < 20
+
+
+def test_no_saccade_from_a_stale_frame_or_when_disabled(graph) -> None:
+    camera, foveation, executor = graph
+    camera.info_pub.publish(_camera_info())
+    assert wait_until(lambda: foveation._camera_k is not None, TIMEOUT, spin=executor)
+    msg = _image_msg()
+    image = np.asarray(msg.data, np.uint8).reshape(HEIGHT, WIDTH, 3)
+    centre = ((WIDTH - 1) / 2, (HEIGHT - 1) / 2)
+    stale = foveation._saccade_epoch - 1              # a saccade began after the frame
+    assert foveation.recognise(image, msg, centre, stale) is not None
+    assert foveation.saccades_sent == 0
+    foveation.set_parameters([Parameter('saccades_enabled', value=False)])
+    foveation.recognise(image, msg, centre, foveation._saccade_epoch)
+    assert foveation.saccades_sent == 0
+    foveation.set_parameters([Parameter('saccades_enabled', value=True)])
+    foveation.recognise(image, msg, centre, foveation._saccade_epoch)
+    assert foveation.saccades_sent == 1
+    # while the eyes move: none
+    camera.gaze_pub.publish(GazeState(in_saccade=True))
+    assert wait_until(lambda: foveation._in_saccade, TIMEOUT, spin=executor)
+    foveation.recognise(image, msg, centre, foveation._saccade_epoch)
+    assert foveation.saccades_sent == 1
+
+
+def test_a_bad_model_is_logged_and_the_node_keeps_foveating(graph, tmp_path, capsys) -> None:
+    camera, foveation, executor = graph
+    bad = tmp_path / 'bad.pt'
+    bad.write_bytes(b'\x00garbage')
+    assert foveation.set_parameters([Parameter('model_path', value=str(bad))])[0].successful
+    assert foveation._classifier is None
+    assert 'cannot load TorchScript model' in capsys.readouterr().err
+    frames = foveation.frames_published
+    assert _send_until(camera, executor, _image_msg(),
+                       lambda: foveation.frames_published > frames + 2)
+    assert foveation.recognitions == 0
+    # an empty path switches recognition off without complaint; bad values are refused
+    assert foveation.set_parameters([Parameter('model_path', value='')])[0].successful
+    assert 'recognition off' in capsys.readouterr().err
+    assert not foveation.set_parameters([Parameter('saliency_threshold', value=1.5)])[0].successful
+    assert not foveation.set_parameters([Parameter('top_k', value=0)])[0].successful
