@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -59,14 +60,66 @@ def _describe(typename: str, msg: Any) -> str:
     return short
 
 
+class _Story:
+    """What the graph did, from the messages that say so: who held the gaze, what was found."""
+
+    def __init__(self) -> None:
+        self.commands: Counter[str] = Counter()        # GazeCommands per source
+        self.holder: Counter[str] = Counter()          # GazeStates per active_source
+        self.saccades = 0
+        self._was_in_saccade = False
+        self.most: dict[str, int] = {}                 # topic -> most items in one message
+        self.labels: Counter[str] = Counter()          # foveation's best final-pass label
+
+    def add(self, topic: str, msg: Any) -> None:
+        if topic == '/gaze/command':
+            self.commands[msg.source or '?'] += 1
+        elif topic == '/gaze/state':
+            self.holder[msg.active_source or 'idle'] += 1
+            self.saccades += msg.in_saccade and not self._was_in_saccade
+            self._was_in_saccade = msg.in_saccade
+        for field in ('tracks', 'cylinders', 'detections'):
+            items = getattr(msg, field, None)
+            if items is not None:
+                self.most[topic] = max(self.most.get(topic, 0), len(items))
+                if field == 'detections' and len(items):
+                    last_pass = max(d.pass_index for d in items)
+                    best = max((d for d in items if d.pass_index == last_pass), key=lambda d: d.score)
+                    self.labels[best.label] += 1
+
+    def lines(self) -> list[str]:
+        out = []
+        if self.holder:
+            total = sum(self.holder.values())
+            shares = ', '.join(f'{k} {100 * v / total:.0f}%' for k, v in self.holder.most_common())
+            out.append(f'gaze held by: {shares} of the time; {self.saccades} saccades')
+        if self.commands:
+            out.append('gaze commands: ' + ', '.join(f'{k} {v}' for k, v in self.commands.most_common()))
+        for topic, n in sorted(self.most.items()):
+            out.append(f'{topic}: at most {n} in one message')
+        if self.labels:
+            out.append('foveation best label per recognition: '
+                       + ', '.join(f'{k} x{v}' for k, v in self.labels.most_common(5)))
+        return out
+
+
+STORY_TOPICS = ('/gaze/command', '/gaze/state', '/cylinders', '/mot/tracks', '/foveation/detections')
+
+
 def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
     reader = BagReader(bag_dir)
     last: dict[str, tuple[str, bytes]] = {}
     first_images: dict[str, np.ndarray] = {}
     stamps: dict[str, list[int]] = {}
+    story = _Story()
     for topic, typename, data, log_ns, _pub_ns in reader.messages():
         stamps.setdefault(topic, []).append(log_ns)
         last[topic] = (typename, data)
+        if topic in STORY_TOPICS:
+            try:
+                story.add(topic, msgs.deserialize(data, typename))
+            except Exception as err:  # noqa: BLE001 - the summary goes on without it
+                print(f'demo: cannot decode a {topic} message: {err}', file=sys.stderr)
         if topic in ('/vizzy/left/image_raw', '/vizzy/right/image_raw') and topic not in first_images:
             try:
                 first_images[topic] = image_to_numpy(msgs.deserialize(data, typename))
@@ -89,7 +142,7 @@ def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
         out_dir.mkdir(parents=True, exist_ok=True)
         picture = out_dir / 'cameras.png'
         cv2.imwrite(str(picture), cv2.cvtColor(both, cv2.COLOR_RGB2BGR))
-    return {'topics': topics, 'picture': str(picture) if picture else None}
+    return {'topics': topics, 'picture': str(picture) if picture else None, 'story': story.lines()}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -125,6 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f'{"topic":34} {"type":42} {"count":>6} {"Hz":>7}  last message')
     for topic, row in summary['topics'].items():
         print(f'{topic:34} {row["type"]:42} {row["count"]:6d} {row["rate_hz"]:7.1f}  {row["last"]}')
+    if summary['story']:
+        print('\nwhat happened:')
+        for line in summary['story']:
+            print(f'  {line}')
     print('\nnodes (exit code after SIGINT; 0 = clean shutdown):')
     for name, code in codes.items():
         print(f'  {name:20} {code}')

@@ -1,0 +1,31 @@
+"""The demo's "what happened" lines, from hand-made messages."""
+
+from vizzy_runtime.demo import _Story
+from vizzy_runtime.ros import message
+
+GazeState = message('active_vision_msgs/msg/GazeState')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+CylinderArray = message('active_vision_msgs/msg/CylinderArray')
+Cylinder = message('active_vision_msgs/msg/Cylinder')
+FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
+FoveatedDetection = message('active_vision_msgs/msg/FoveatedDetection')
+
+
+def test_story_counts_gaze_holders_saccades_and_findings() -> None:
+    story = _Story()
+    for source, in_saccade in [('', False), ('foveation', True), ('foveation', True),
+                               ('foveation', False), ('stereo_ses', True)]:
+        story.add('/gaze/state', GazeState(active_source=source, in_saccade=in_saccade))
+    story.add('/gaze/command', GazeCommand(source='stereo_ses'))
+    story.add('/gaze/command', GazeCommand(source='stereo_ses'))
+    story.add('/cylinders', CylinderArray(cylinders=[Cylinder(), Cylinder()]))
+    story.add('/cylinders', CylinderArray(cylinders=[]))
+    story.add('/foveation/detections', FoveatedDetectionArray(detections=[
+        FoveatedDetection(label='can', score=0.9, pass_index=0),
+        FoveatedDetection(label='jar', score=0.4, pass_index=1),
+        FoveatedDetection(label='box', score=0.6, pass_index=1)]))
+    lines = story.lines()
+    assert lines[0] == 'gaze held by: foveation 60%, idle 20%, stereo_ses 20% of the time; 2 saccades'
+    assert 'gaze commands: stereo_ses 2' in lines
+    assert '/cylinders: at most 2 in one message' in lines
+    assert lines[-1] == 'foveation best label per recognition: box x1'
