@@ -18,10 +18,9 @@ from cylinder_detector_node.core.scene import make_tabletop
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
 from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import spinning, wait_until
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
@@ -53,19 +52,11 @@ def graph(context):
     camera = Camera(context)
     detector = cyl_node.CylinderDetectorNode(
         context=context, parameter_overrides=[Parameter('heartbeat_period_s', value=3600.0)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(camera)
-    executor.add_node(detector)
-    assert wait_until(lambda: camera.cloud_pub.get_subscription_count() > 0
-                      and detector._pub.get_subscription_count() > 0
-                      and detector._marker_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
-    try:
+    with spinning(context, [camera, detector],
+                  lambda: camera.cloud_pub.get_subscription_count() > 0
+                  and detector._pub.get_subscription_count() > 0
+                  and detector._marker_pub.get_subscription_count() > 0, TIMEOUT) as executor:
         yield camera, detector, executor
-    finally:
-        executor.remove_node(camera)
-        executor.remove_node(detector)
-        detector.destroy_node()
-        camera.destroy_node()
 
 
 def _cloud_msg(xyz: np.ndarray, stamp_sec: int) -> Any:

@@ -21,10 +21,9 @@ from mot_planner_node.core.observation import DetectorGeometry
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
 from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import spinning, wait_until
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
@@ -100,22 +99,14 @@ def graph(context, monkeypatch):
     mot = mot_node.MotPlannerNode(context=context, parameter_overrides=[
         Parameter('k_max', value=K_MAX), Parameter('s_max', value=0.3),
         Parameter('full_frame_period', value=5), Parameter('gaze_rate_hz', value=30.0)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(camera)
-    executor.add_node(mot)
-    assert wait_until(lambda: camera.image_pub.get_subscription_count() > 0
-                      and camera.info_pub.get_subscription_count() > 0
-                      and camera.gaze_pub.get_subscription_count() > 0
-                      and mot._tracks_pub.get_subscription_count() > 0
-                      and mot._attention_pub.get_subscription_count() > 0
-                      and mot._gaze_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
-    try:
+    with spinning(context, [camera, mot],
+                  lambda: camera.image_pub.get_subscription_count() > 0
+                  and camera.info_pub.get_subscription_count() > 0
+                  and camera.gaze_pub.get_subscription_count() > 0
+                  and mot._tracks_pub.get_subscription_count() > 0
+                  and mot._attention_pub.get_subscription_count() > 0
+                  and mot._gaze_pub.get_subscription_count() > 0, TIMEOUT) as executor:
         yield camera, mot, executor
-    finally:
-        executor.remove_node(camera)
-        executor.remove_node(mot)
-        mot.destroy_node()
-        camera.destroy_node()
 
 
 def _image(array: np.ndarray, stamp_frame: int, encoding: str = 'rgb8') -> Any:

@@ -19,10 +19,9 @@ from stereo_ses_node.core.synthetic import plane_texture, render_plane
 from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
 from vizzy_runtime.ros import message, qos_profile_latched, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import spinning, wait_until
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
@@ -104,21 +103,13 @@ def graph(context):
         Parameter('n_cells', value=3000), Parameter('max_rate_hz', value=30.0),
         Parameter('decision_period_s', value=0.1), Parameter('frames_per_fixation', value=1),
         Parameter('cells_rate_hz', value=20.0)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(rig)
-    executor.add_node(ses)
-    assert wait_until(lambda: all(p.get_subscription_count() > 0 for p in rig.image_pubs.values())
-                      and rig.state_pub.get_subscription_count() > 0
-                      and ses._points_pub.get_subscription_count() > 0
-                      and ses._cells_pub.get_subscription_count() > 0
-                      and ses._gaze_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
-    try:
+    with spinning(context, [rig, ses],
+                  lambda: all(p.get_subscription_count() > 0 for p in rig.image_pubs.values())
+                  and rig.state_pub.get_subscription_count() > 0
+                  and ses._points_pub.get_subscription_count() > 0
+                  and ses._cells_pub.get_subscription_count() > 0
+                  and ses._gaze_pub.get_subscription_count() > 0, TIMEOUT) as executor:
         yield rig, ses, executor
-    finally:
-        executor.remove_node(rig)
-        executor.remove_node(ses)
-        ses.destroy_node()
-        rig.destroy_node()
 
 
 _stamps = iter(range(10_000))

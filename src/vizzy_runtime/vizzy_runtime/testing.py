@@ -100,6 +100,25 @@ def node_under_test(node_factory: Callable[[], Any]) -> Iterator[Any]:
         rclpy.try_shutdown()
 
 
+@contextlib.contextmanager
+def spinning(context: Any, nodes: Sequence[Any], ready: Callable[[], bool],
+             timeout: float = 10.0) -> Iterator[Any]:
+    """A SingleThreadedExecutor over nodes in context, once ready() holds (e.g. every publisher
+    matched); yields the executor and afterwards removes and destroys the nodes (last first)."""
+    from vizzy_runtime.ros import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=context)
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        assert wait_until(ready, timeout, spin=executor), f'not ready within {timeout} s'
+        yield executor
+    finally:
+        for node in reversed(nodes):
+            executor.remove_node(node)
+            node.destroy_node()
+
+
 def check_node_parameters(ros_node: Any, parameters: Sequence[tuple[str, Any, str]],
                           bad_name: str, bad_value: Any) -> None:
     """A running node declares every parameter at its default and refuses bad_name=bad_value,

@@ -15,10 +15,9 @@ import pytest
 
 from vizzy_runtime.ros import message, qos_profile_latched
 from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import spinning, wait_until
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
     LEFT_OPTICAL_FRAME, RIGHT_OPTICAL_FRAME, GazeSplit, home_posture, joint_limits,
@@ -96,21 +95,12 @@ class FakeHead(Node):
 def head_and_controller(context):
     head = FakeHead(context)
     controller = GazeControllerNode(context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(head)
-    executor.add_node(controller)
-    spin = executor
-    assert wait_until(lambda: head.command_pub.get_subscription_count() > 0
-                      and controller.tf_buffer.can_transform('base_link', 'ego')
-                      and controller.tf_buffer.can_transform('base_link', LEFT_OPTICAL_FRAME)
-                      and len(head.states) > 0, TIMEOUT, spin=spin)
-    try:
-        yield head, controller, spin
-    finally:
-        executor.remove_node(head)
-        executor.remove_node(controller)
-        controller.destroy_node()
-        head.destroy_node()
+    with spinning(context, [head, controller],
+                  lambda: head.command_pub.get_subscription_count() > 0
+                  and controller.tf_buffer.can_transform('base_link', 'ego')
+                  and controller.tf_buffer.can_transform('base_link', LEFT_OPTICAL_FRAME)
+                  and len(head.states) > 0, TIMEOUT) as executor:
+        yield head, controller, executor
 
 
 def _wait_status(head: FakeHead, spin: Any, n: int, status: int, words: str = '',
