@@ -45,7 +45,8 @@ from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylin
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import SegmentParams
 from vizzy_runtime.convert import ConversionError, image_to_numpy, pointcloud2_to_array
-from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.node_tools import (LatestWorker, declare_parameters, guarded, main_for,
+                                       replace_timer)
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
@@ -260,9 +261,6 @@ class CylinderDetectorNode(Node):
         self._frame_ms: list[float] = []    # frame times since the last report
 
         self._lock = threading.Lock()
-        self._wake = threading.Condition(self._lock)
-        self._pending: Any = None           # newest cloud not yet processed
-        self._stop = False
         self._images: list[Any] = []        # the last IMAGE_BUFFER images (under _lock)
         torch.set_num_threads(1)            # a ~60k-parameter CNN on a few patches: threads only contend
         self.classifier: PatchClassifier | None = None
@@ -278,8 +276,8 @@ class CylinderDetectorNode(Node):
             Image, IMAGE_TOPIC, guarded(self, f'{IMAGE_TOPIC}: failed on an image', self._on_image),
             qos_profile_sensor_data)
         self._timer = self.create_timer(self._p['heartbeat_period_s'], self._on_heartbeat)
-        self._worker = threading.Thread(target=self._work, name='cylinder_detector', daemon=True)
-        self._worker.start()
+        self._worker = LatestWorker('cylinder_detector', guarded(
+            self, f'{CLOUD_TOPIC}: failed on a cloud', self.process_cloud))
         p = self._p
         self.get_logger().info(
             f'detecting cylinders in {CLOUD_TOPIC} onto {CYLINDERS_TOPIC} and {MARKERS_TOPIC}: '
@@ -291,11 +289,8 @@ class CylinderDetectorNode(Node):
 
     def _on_cloud(self, msg: Any) -> None:
         self._last_cloud = time.monotonic()
-        with self._wake:
-            if self._pending is not None:
-                self.frames_dropped += 1    # the worker is still busy: keep only the newest
-            self._pending = msg
-            self._wake.notify()
+        if self._worker.put(msg):
+            self.frames_dropped += 1        # the worker is still busy: keep only the newest
 
     def _on_image(self, msg: Any) -> None:
         with self._lock:
@@ -356,17 +351,6 @@ class CylinderDetectorNode(Node):
 
     # --- the worker -----------------------------------------------------------------------------
 
-    def _work(self) -> None:
-        process = guarded(self, f'{CLOUD_TOPIC}: failed on a cloud', self.process_cloud)
-        while True:
-            with self._wake:
-                while self._pending is None and not self._stop:
-                    self._wake.wait(0.5)
-                if self._stop:
-                    return
-                msg, self._pending = self._pending, None
-            process(msg)
-
     def process_cloud(self, msg: Any) -> Detection | None:
         """Detect cylinders in one cloud and publish them (an empty array for a bad cloud)."""
         t0 = time.perf_counter()
@@ -423,11 +407,7 @@ class CylinderDetectorNode(Node):
             f'processed, {self.frames_dropped} dropped while busy')
 
     def destroy_node(self) -> Any:
-        with self._wake:
-            self._stop = True
-            self._wake.notify()
-        if self._worker.is_alive() and self._worker is not threading.current_thread():
-            self._worker.join(timeout=30.0)
+        self._worker.close()
         return super().destroy_node()
 
 

@@ -52,7 +52,8 @@ from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
 from stereo_ses_node.core.stereo import StereoFrame, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
 from vizzy_runtime.convert import ConversionError, array_to_pointcloud2, image_to_numpy
-from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.node_tools import (LatestWorker, declare_parameters, guarded, main_for,
+                                       replace_timer)
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 
@@ -290,10 +291,7 @@ class StereoSesNode(Node):
                                      on_change=self._on_parameters_changed)
         self._lock = threading.Lock()
         self._ses_lock = threading.Lock()
-        self._wake = threading.Condition(self._lock)
-        self._stop = threading.Event()
         self._unpaired: dict[str, list[Any]] = {e: [] for e in EYES}   # waiting, oldest first
-        self._pending: Pair | None = None            # newest complete pair, not processed yet
         self._k: dict[str, np.ndarray] = {}
         self._info_size: dict[str, tuple[int, int]] = {}
         self._in_saccade = False
@@ -341,8 +339,8 @@ class StereoSesNode(Node):
             GazeState, GAZE_STATE_TOPIC,
             guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
         self._cells_timer = self.create_timer(1.0 / self._p['cells_rate_hz'], self._on_cells_timer)
-        self._worker = threading.Thread(target=self._work, name='stereo_ses_worker', daemon=True)
-        self._worker.start()
+        self._worker = LatestWorker('stereo_ses_worker', self._work,
+                                    lambda: 1.0 / self._p['max_rate_hz'])
         p = self._p
         self.get_logger().info(
             f'stereo on {IMAGE_TOPICS["left"]} + {IMAGE_TOPICS["right"]} with a {p["sensor"]} '
@@ -434,11 +432,9 @@ class StereoSesNode(Node):
                 others[:] = [m for m in others if stamp_seconds(m.header.stamp) > t_other]
                 mine.clear()
                 pair = Pair(msg if eye == 'left' else match, match if eye == 'left' else msg, t)
-                if self._pending is not None:
+                if self._worker.put(pair):
                     self.pairs_dropped += 1       # the worker is busy: newest pair wins
-                self._pending = pair
                 self.pairs_received += 1
-                self._wake.notify()
             self.images_unpaired += dropped
         if dropped:
             self._warn('skew', f'dropped {dropped} image(s) without a partner (left/right stamps '
@@ -447,28 +443,13 @@ class StereoSesNode(Node):
 
     # --- the worker -----------------------------------------------------------------------------
 
-    def _work(self) -> None:
-        last = -math.inf
-        while not self._stop.is_set():
-            with self._lock:
-                while self._pending is None and not self._stop.is_set():
-                    self._wake.wait(0.2)
-                if self._stop.is_set():
-                    return
-            wait = last + 1.0 / self._p['max_rate_hz'] - time.monotonic()
-            if wait > 0 and self._stop.wait(wait):
-                return
-            with self._lock:
-                pair, self._pending = self._pending, None
-            if pair is None:
-                continue
-            last = time.monotonic()
-            try:
-                self._process(pair)
-            except Exception as exc:  # one bad pair never stops the worker
-                self.frames_skipped += 1
-                self._warn('process', f'stereo pair failed: {type(exc).__name__}: {exc}')
-            self.pairs_processed += 1
+    def _work(self, pair: Pair) -> None:
+        try:
+            self._process(pair)
+        except Exception as exc:  # one bad pair never stops the worker
+            self.frames_skipped += 1
+            self._warn('process', f'stereo pair failed: {type(exc).__name__}: {exc}')
+        self.pairs_processed += 1
 
     def _skip(self, kind: str, text: str) -> None:
         self.frames_skipped += 1
@@ -642,11 +623,7 @@ class StereoSesNode(Node):
         self._cells_pub.publish(array_to_pointcloud2(cells, header))
 
     def destroy_node(self) -> Any:
-        self._stop.set()
-        with self._lock:
-            self._wake.notify_all()
-        if self._worker.is_alive() and threading.current_thread() is not self._worker:
-            self._worker.join(timeout=5.0)
+        self._worker.close()
         return super().destroy_node()
 
 

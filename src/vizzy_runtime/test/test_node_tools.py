@@ -1,11 +1,13 @@
 """vizzy_runtime.node_tools on the bundled runtime: parameter tables, guarded callbacks, main."""
 
+import threading
+import time
 from typing import Any
 
 import pytest
 
 from vizzy_runtime import node_tools
-from vizzy_runtime.node_tools import declare_parameters, guarded, replace_timer
+from vizzy_runtime.node_tools import LatestWorker, declare_parameters, guarded, replace_timer
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
@@ -212,3 +214,37 @@ def test_main_for_runs_the_standard_main(monkeypatch):
     with pytest.raises(ValueError):
         node_tools.main_for(failing_factory)()
     assert events == [('init', None), 'shutdown']
+
+
+def test_latest_worker_runs_the_newest_item_and_drops_the_rest() -> None:
+    gate, seen = threading.Event(), []
+
+    def handle(item):
+        gate.wait(5.0)              # busy on the first item until the test opens the gate
+        seen.append(item)
+
+    worker = LatestWorker('test_worker', handle)
+    try:
+        assert not worker.put(1)
+        assert wait_until(lambda: not worker._waiting, 5.0)     # 1 taken, the thread is busy
+        assert not worker.put(2)
+        assert worker.put(3) and worker.put(4)                  # 2 and 3 replaced while waiting
+        gate.set()
+        assert wait_until(lambda: seen == [1, 4], 5.0)
+    finally:
+        worker.close()
+    assert not worker._thread.is_alive()
+
+
+def test_latest_worker_spaces_starts_by_the_period() -> None:
+    starts = []
+    worker = LatestWorker('test_worker', lambda item: starts.append(time.monotonic()),
+                          min_period_s=lambda: 0.2)
+    try:
+        worker.put(1)
+        assert wait_until(lambda: len(starts) == 1, 5.0)
+        worker.put(2)
+        assert wait_until(lambda: len(starts) == 2, 5.0)
+    finally:
+        worker.close()
+    assert starts[1] - starts[0] >= 0.2 - 1e-3

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 import time
 from typing import Any, Callable, Collection, Iterable, Sequence
 
@@ -147,6 +148,57 @@ def replace_timer(node: Any, timer: Any, period_s: float, callback: Callable[[],
     return node.create_timer(period_s, callback)
 
 
+class LatestWorker:
+    """A thread that runs handle(item) on the newest item put(), one at a time, so that slow work
+    (a CNN, a point cloud) never blocks the executor: an item the thread has not taken yet is
+    replaced by a newer one (newest wins). min_period_s() (read before each start) spaces the
+    starts. handle must not raise: wrap it with guarded() or catch inside. close() stops it."""
+
+    def __init__(self, name: str, handle: Callable[[Any], Any],
+                 min_period_s: Callable[[], float] = lambda: 0.0) -> None:
+        self._handle = handle
+        self._min_period_s = min_period_s
+        self._wake = threading.Condition()
+        self._item: Any = None
+        self._waiting = False             # an item is there (it may be None)
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread.start()
+
+    def put(self, item: Any) -> bool:
+        """Hand item over; True if it replaced one that was still waiting (a dropped item)."""
+        with self._wake:
+            replaced = self._waiting
+            self._item, self._waiting = item, True
+            self._wake.notify()
+        return replaced
+
+    def _run(self) -> None:
+        last = -math.inf
+        while True:
+            with self._wake:
+                while not (self._waiting or self._stop):
+                    self._wake.wait()
+                while not self._stop:       # the rate: a put() meanwhile replaces the item
+                    wait = last + self._min_period_s() - time.monotonic()
+                    if wait <= 0.0:
+                        break
+                    self._wake.wait(wait)
+                if self._stop:
+                    return
+                item, self._item, self._waiting = self._item, None, False
+            last = time.monotonic()
+            self._handle(item)
+
+    def close(self, timeout: float = 30.0) -> None:
+        """Stop taking items; wait up to timeout for the one in hand (not from its own thread)."""
+        with self._wake:
+            self._stop = True
+            self._wake.notify_all()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+
+
 def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
     """The standard main: init, spin node_factory() until Ctrl-C or shutdown, clean up."""
     rclpy.init(args=args)
@@ -172,5 +224,5 @@ def main_for(node_factory: Callable[[], Any]) -> Callable[..., None]:
     return main
 
 
-__all__ = ['Check', 'CheckAll', 'ParameterTable', 'declare_parameters', 'guarded', 'main_for',
-           'replace_timer', 'run']
+__all__ = ['Check', 'CheckAll', 'LatestWorker', 'ParameterTable', 'declare_parameters', 'guarded',
+           'main_for', 'replace_timer', 'run']
