@@ -114,3 +114,27 @@ def test_coarse_to_fine_vote_and_closed_form_curvature_match_the_full_ones() -> 
         curved = val[:, 2] > 1e-3
         assert np.allclose(np.abs(np.sum(c * vec[:, :, 2], axis=1))[curved], 1.0, atol=1e-6)
     assert same >= 9
+
+
+def test_curvature_is_the_same_in_any_tangent_basis_and_defined_on_planes() -> None:
+    """normals_and_curvature (the PCA's tangent eigenvectors as the basis) gives the k_max of the
+    branch-free basis to 1e-12 and the same c_max up to sign; a perfectly flat patch (every
+    neighbour normal equal, isotropic 2x2 covariance) gives k_max = 0 and a finite unit c_max in
+    the tangent plane."""
+    from cylinder_detector_node.core.geometry import pca_normals, principal_curvature
+    rng = np.random.default_rng(7)
+    s = make_cylinder(rng, 0.05, 0.2, 600, 0.5, 0.0005, axis=random_axis(rng))
+    n, c, k = normals_and_curvature(s.points)
+    n2, idx = pca_normals(s.points)
+    c2, k2 = principal_curvature(n2, idx)
+    assert np.array_equal(n, n2)
+    assert np.allclose(k, k2, atol=1e-12)
+    curved = k > 1e-3
+    assert curved.sum() > 300
+    assert np.allclose(np.abs(np.sum(c * c2, axis=1))[curved], 1.0, atol=1e-9)
+    flat_n = np.tile([0.0, 0.0, 1.0], (50, 1)) * rng.choice([-1.0, 1.0], (50, 1))   # signs as PCA leaves them
+    flat_idx = np.array([np.roll(np.arange(50), -i)[:15] for i in range(50)])
+    c3, k3 = principal_curvature(flat_n, flat_idx)
+    assert np.all(k3 == 0.0)
+    assert np.all(np.isfinite(c3))
+    assert np.allclose(np.linalg.norm(c3, axis=1), 1.0) and np.allclose(c3[:, 2], 0.0)

@@ -71,21 +71,35 @@ def vote_curvature(directions: Array, normals: Array, c_max: Array, k_max: Array
     (arbitrary) signs of n and c, as an axis is: d and -d are the same orientation.
     """
     # float32: votes need no more, and the (N_d x N) products and powers run twice as fast
-    d32 = directions.astype(np.float32, copy=False)
-    dn = np.abs(d32 @ normals.T.astype(np.float32))
-    dc = np.abs(d32 @ c_max.T.astype(np.float32))
-    v = (1.0 - dc) * (1.0 - dn)
+    f32 = np.float32
+    return votes_f32(directions.astype(f32, copy=False), np.stack([normals, c_max]).astype(f32, copy=False),
+                     k_max.astype(f32, copy=False), sharpness).astype(np.float64)
+
+
+def votes_f32(d: NDArray[np.float32], features: NDArray[np.float32], weights: NDArray[np.float32],
+              sharpness: float = 1.0) -> NDArray[np.float32]:
+    """vote_curvature on float32 arrays, features (2, N, 3) = (normals, c_max), returning float32.
+    Both inner products come from one batched product and the factors are formed in place (no
+    fresh (N_d x N) temporary per step)."""
+    p = np.matmul(d, features.transpose(0, 2, 1))   # (2, N_d, N): d.n, d.c
+    np.abs(p, out=p)
+    np.subtract(1.0, p, out=p)                      # 1 - |d.n|, 1 - |d.c|
+    v = p[0]
+    v *= p[1]
     if sharpness != 1.0:
         e = float(sharpness)
         if e.is_integer() and e > 0 and (int(e) & (int(e) - 1)) == 0:   # 2, 4, 8, ...: repeated squaring
             for _ in range(int(e).bit_length() - 1):
                 v *= v
         else:
-            v = v ** e
-    return (v @ k_max.astype(np.float32)).astype(np.float64)
+            np.power(v, e, out=v)
+    return v @ weights
 
 
 def vote_normals(directions: Array, normals: Array) -> Array:
     """Normals-only soft votes A(i) = sum_s (1 - |d^i.n^s|), the Rabbani baseline's criterion:
     every normal votes for the great circle of directions orthogonal to it."""
-    return (1.0 - np.abs(directions @ normals.T)).sum(axis=1)
+    v = directions @ normals.T
+    np.abs(v, out=v)                                # in place, as in votes_f32
+    np.subtract(1.0, v, out=v)
+    return v.sum(axis=1)

@@ -11,11 +11,12 @@ inliers' extent along the axis; confidence is N_model / N_cluster (Eq. 4.4).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .accumulator import TABLE_4_1, OrientationGMM, sample_gmm_directions, uniform_directions, vote_curvature, vote_normals
+from .accumulator import TABLE_4_1, OrientationGMM, sample_gmm_directions, uniform_directions, vote_normals, votes_f32
 from .geometry import normals_and_curvature, pca_normals
 
 Array = NDArray[np.float64]
@@ -109,14 +110,27 @@ def curvature_weights(k_max: Array, fraction: float | None) -> Array:
         return k_max
     # the 90th percentile (np.quantile's linear interpolation) from a partial sort: quantile's
     # overhead was a third of this function's time on 600-point clusters
-    pos = 0.9 * (len(k_max) - 1)
+    n = len(k_max)
+    pos = 0.9 * (n - 1)
     lo = int(pos)
-    hi = min(lo + 1, len(k_max) - 1)
-    part = np.partition(k_max, (lo, hi))
-    k_sat = fraction * float(part[lo] + (pos - lo) * (part[hi] - part[lo]))
+    hi = min(lo + 1, n - 1)
+    part = k_max.copy()
+    part.partition((lo, hi))                 # np.partition without its wrapper's overhead
+    p_lo, p_hi = float(part[lo]), float(part[hi])
+    k_sat = fraction * (p_lo + (pos - lo) * (p_hi - p_lo))
     if k_sat <= 1e-12:
         return np.ones_like(k_max)
-    return np.minimum(k_max / k_sat, 1.0)
+    w = k_max / k_sat
+    return np.minimum(w, 1.0, out=w)
+
+
+@lru_cache(maxsize=64)
+def even_subset(n: int, m: int) -> NDArray[np.intp]:
+    """m evenly spaced indices into n points (the coarse vote's voters), cached: cluster sizes
+    repeat (max_points) and np.linspace's overhead is not small against the vote itself."""
+    sub = np.linspace(0, n - 1, m).astype(np.intp)
+    sub.flags.writeable = False
+    return sub
 
 
 def axis_votes(normals: Array, c_max: Array, k_max: Array, directions: Array, method: str,
@@ -135,14 +149,18 @@ def axis_votes(normals: Array, c_max: Array, k_max: Array, directions: Array, me
         votes = vote_normals(directions, normals)
         return int(np.argmax(votes)), votes
     w = curvature_weights(k_max, saturation)
+    # the votes run in float32 (vote_curvature): convert once for both passes
     n = len(normals)
+    feats = np.empty((2, n, 3), np.float32)
+    feats[0], feats[1] = normals, c_max
+    w32, d32 = w.astype(np.float32), directions.astype(np.float32)
     if 0 < coarse_points < n and 0 < candidates < len(directions):
-        sub = np.linspace(0, n - 1, coarse_points).astype(np.intp)
-        coarse = vote_curvature(directions, normals[sub], c_max[sub], w[sub], sharpness)
-        cand = np.argpartition(coarse, -candidates)[-candidates:]
-        fine = vote_curvature(directions[cand], normals, c_max, w, sharpness)
-        return int(cand[int(np.argmax(fine))]), coarse
-    votes = vote_curvature(directions, normals, c_max, w, sharpness)
+        sub = even_subset(n, coarse_points)
+        coarse = votes_f32(d32, feats[:, sub], w32[sub], sharpness).astype(np.float64)
+        cand = coarse.argpartition(-candidates)[-candidates:]
+        fine = votes_f32(d32[cand], feats, w32, sharpness)
+        return int(cand[int(fine.argmax())]), coarse
+    votes = votes_f32(d32, feats, w32, sharpness).astype(np.float64)
     return int(np.argmax(votes)), votes
 
 
