@@ -25,6 +25,16 @@ error vs fixation, localisation vs th) and foveated_recognition_example.png (Fig
 view, f_0 = 60).
 
     .venv/bin/python experiments/foveated_recognition.py [--per-class 8] [--quick]
+    .venv/bin/python experiments/foveated_recognition.py --tabletop [--seeds 20] [--poses 4]
+
+--tabletop (only that part; also run by the full experiment): recognition where the node runs,
+the cluttered tabletop scene (`tabletop_accuracy`, core.tabletop_views): left-eye 640x480
+renders of tabletop(seed) for seeds not used in training, the demo's head pose plus random
+ones, two-pass recognition (f_0 = 100, the node's default) from the image centre and from
+random fixations. A case is right when the final best label (pass 2's first) is the class of
+the object under its saliency box's centre (of the unoccluded objects whose box holds that
+point, the nearest; else the nearest). Chance: 1/7, and always answering the commonest class
+of the objects picked. Writes foveated_recognition_tabletop.json.
 """
 
 from __future__ import annotations
@@ -84,7 +94,12 @@ def main() -> int:
     parser.add_argument('--out', type=Path, default=ROOT / 'experiments' / 'results')
     parser.add_argument('--example-only', action='store_true',
                         help='only the Fig. 2.5 example (f0 = 60) of the same views')
+    parser.add_argument('--tabletop', action='store_true', help='only the tabletop part')
+    parser.add_argument('--seeds', type=int, default=20, help='tabletop scenes (--tabletop)')
+    parser.add_argument('--poses', type=int, default=4, help='head poses per tabletop scene')
     args = parser.parse_args()
+    if args.tabletop:
+        return run_tabletop(args)
 
     import torch
     from tqdm import tqdm
@@ -195,6 +210,8 @@ def main() -> int:
     plot(result, f0s, grid, args.out / f'{stem}.png')
     example(clf, views, Foveator(W, H, LEVELS, EXAMPLE_F0), args.out / f'{stem}_example.png')
     (args.out / f'{stem}.json').write_text(json.dumps(rounded(result), indent=1) + '\n')
+    if not args.quick:
+        run_tabletop(args)
 
     base = result['by_f0'][-1]
     print(f'{len(views)} views, {len(cases)} two-pass cases in {result["seconds"]:.0f} s')
@@ -209,6 +226,102 @@ def main() -> int:
     print(json.dumps({'non_centred_max_gain': result['max_second_pass_gain_top1']['non_centred'][0],
                       'centred_max_gain': result['max_second_pass_gain_top1']['centred'][0],
                       'unfoveated_top1_error': base['centred_pass1_top1_error']}))
+    return 0
+
+
+TABLETOP_SEED0 = 500             # training uses seeds >= 10000 (train_classifier.TABLETOP_SEED0)
+TABLETOP_FIXATIONS = 4           # random initial fixations per view, besides the centre
+
+
+def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: float = 100.0,
+                      seed0: int = TABLETOP_SEED0) -> dict:
+    """Two-pass recognition on rendered tabletop views (see the module docstring, --tabletop).
+
+    Poses per scene: the demo's start (DEFAULT_JOINTS) and poses - 1 random ones. Fixations: the
+    image centre and TABLETOP_FIXATIONS uniform ones. Returns accuracies (final label = class of
+    the object under its box; pass 1's best label judged the same way; final label = class of
+    any visible object), chance levels and the histograms of final labels and true classes.
+    """
+    from tqdm import tqdm
+
+    from foveation_node.core.object_views import CLASSES
+    from foveation_node.core.tabletop_views import (DEFAULT_JOINTS, TabletopViews, object_at,
+                                                    random_joints)
+
+    rng = np.random.default_rng(seed0)
+    foveator = Foveator(W, H, LEVELS, f0)
+    rows = []          # (centred, final right, pass-1 right, final in scene, final, true class)
+    n_views = 0
+    with TabletopViews(W, H) as tv:
+        for s in tqdm(range(seed0, seed0 + seeds), desc='tabletop scenes', unit='scene'):
+            for p in range(poses):
+                joints = DEFAULT_JOINTS if p == 0 else random_joints(rng)
+                try:
+                    view = tv.view(s, joints)
+                except RuntimeError:
+                    break                                 # the scene builder gave up on it
+                if not any(o.visible for o in view.objects):
+                    continue
+                n_views += 1
+                present = {o.label for o in view.objects if o.visible}
+                fixations = [CENTRE] + [(float(rng.uniform(0, W - 1)), float(rng.uniform(0, H - 1)))
+                                        for _ in range(TABLETOP_FIXATIONS)]
+                for j, fix in enumerate(fixations):
+                    res = two_pass(clf, view.rgb, fix, foveator.foveate, top_k=5, threshold=0.7)
+                    best, first = res.second[0], res.first[0]
+                    truth = object_at(view.objects, *best.centre)
+                    truth1 = object_at(view.objects, *first.centre)
+                    rows.append((j == 0, best.class_id == truth.label,
+                                 first.class_id == truth1.label, best.class_id in present,
+                                 best.class_id, truth.label))
+    r = np.array(rows, int)
+    centred = r[:, 0] == 1
+    true_hist = np.bincount(r[:, 5], minlength=len(CLASSES))
+    out = {'scenes': seeds, 'poses_per_scene': poses, 'views': n_views, 'cases': len(r),
+           'f0_px': f0, 'seeds': [seed0, seed0 + seeds - 1],
+           'fixations': f'image centre + {TABLETOP_FIXATIONS} uniform random per view',
+           'final_accuracy': float(r[:, 1].mean()),
+           'final_accuracy_centred': float(r[centred, 1].mean()),
+           'final_accuracy_random_fixation': float(r[~centred, 1].mean()),
+           'pass1_accuracy': float(r[:, 2].mean()),
+           'final_label_in_scene': float(r[:, 3].mean()),
+           'chance_uniform': 1.0 / len(CLASSES),
+           'chance_commonest_class': float(true_hist.max() / len(r)),
+           'final_labels': {c: int(n) for c, n in
+                            zip(CLASSES, np.bincount(r[:, 4], minlength=len(CLASSES)))},
+           'true_classes': {c: int(n) for c, n in zip(CLASSES, true_hist)}}
+    per_class = {}
+    for i, c in enumerate(CLASSES):
+        sel = r[:, 5] == i
+        if sel.any():
+            per_class[c] = float(r[sel, 1].mean())
+    out['final_accuracy_per_true_class'] = per_class
+    return out
+
+
+def run_tabletop(args: argparse.Namespace) -> int:
+    import torch
+
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    clf = Classifier(args.model, args.labels)
+    t0 = time.perf_counter()
+    res = tabletop_accuracy(clf, args.seeds, args.poses)
+    res['model'] = str(Path(args.model).resolve().relative_to(ROOT)) \
+        if Path(args.model).resolve().is_relative_to(ROOT) else str(args.model)
+    res['seconds'] = round(time.perf_counter() - t0, 1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / 'foveated_recognition_tabletop.json').write_text(
+        json.dumps(rounded(res), indent=1) + '\n')
+    print(f'tabletop: {res["views"]} views, {res["cases"]} two-pass cases in {res["seconds"]:.0f} s')
+    print(f'final label = class under its box: {res["final_accuracy"]:.3f} (centred '
+          f'{res["final_accuracy_centred"]:.3f}, random fixation '
+          f'{res["final_accuracy_random_fixation"]:.3f}); pass 1 {res["pass1_accuracy"]:.3f}; '
+          f'chance {res["chance_uniform"]:.3f} / commonest class {res["chance_commonest_class"]:.3f}')
+    print(f'final labels {res["final_labels"]}; true classes {res["true_classes"]}')
+    print(json.dumps({'tabletop_final_accuracy': res['final_accuracy'],
+                      'tabletop_pass1_accuracy': res['pass1_accuracy'],
+                      'chance_commonest_class': res['chance_commonest_class']}))
     return 0
 
 

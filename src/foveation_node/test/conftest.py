@@ -8,6 +8,7 @@ which colour patch they hold. No training: the weights are fixed.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import pytest
@@ -32,11 +33,21 @@ class ColourDetector(nn.Module):
         return torch.relu(self.conv(excess)).amax(dim=(2, 3)) * 4.0
 
 
+def script(module: nn.Module) -> torch.jit.ScriptModule:
+    """torch.jit.script without the DeprecationWarning torch >= 2.9 gives on every use (the
+    node loads TorchScript files; building them is the tests' business only)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', DeprecationWarning)
+        return torch.jit.script(module)
+
+
 def save_stub(directory: Path, labels: tuple[str, ...] = STUB_LABELS) -> tuple[Path, Path]:
     """Write the stub model (stub.pt) and its labels (stub.labels) under directory."""
-    model = torch.jit.script(ColourDetector().eval())
+    model = script(ColourDetector().eval())
     model_path, labels_path = directory / 'stub.pt', directory / 'stub.labels'
-    model.save(str(model_path))
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', DeprecationWarning)
+        model.save(str(model_path))
     labels_path.write_text('\n'.join(labels) + '\n')
     return model_path, labels_path
 
