@@ -45,7 +45,6 @@ from __future__ import annotations
 import array
 import importlib.util
 import math
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -59,7 +58,7 @@ from foveation_node.core.recognition import (
     DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
     back_project, saccade_target, two_pass)
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
-from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
+from vizzy_runtime.node_tools import LatestWorker, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
 
 Image = message('sensor_msgs/msg/Image')
@@ -267,22 +266,14 @@ class FoveationNode(Node):
         self.last_result: TwoPassResult | None = None
         self.last_recognition_ms: float | None = None
         self.saccades_sent = 0
-        self._wake = threading.Condition(threading.Lock())
-        self._pending: tuple[Any, ...] | None = None     # newest frame for the worker
-        self._stop = False
         self._det_pub = self.create_publisher(FoveatedDetectionArray, DETECTIONS_TOPIC, 10)
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         self._load_classifier()
-        self._worker = threading.Thread(target=self._work, name='foveation_recognition',
-                                        daemon=True)
-        self._worker.start()
+        recognise = guarded(self, 'recognition failed on a frame', self.recognise)
+        self._worker = LatestWorker('foveation_recognition', lambda job: recognise(*job))
 
     def destroy_node(self) -> Any:
-        with self._wake:
-            self._stop = True
-            self._wake.notify()
-        if self._worker.is_alive() and self._worker is not threading.current_thread():
-            self._worker.join(timeout=30.0)
+        self._worker.close()
         return super().destroy_node()
 
     # --- inputs ---------------------------------------------------------------------------------
@@ -389,21 +380,8 @@ class FoveationNode(Node):
         if now - self._last_handoff < 1.0 / self._p['recognition_rate_hz']:
             return
         self._last_handoff = now
-        with self._wake:
-            # image may view msg's buffer: keep msg alive with it
-            self._pending = (image, msg, fixation, self._saccade_epoch)
-            self._wake.notify()
-
-    def _work(self) -> None:
-        recognise = guarded(self, 'recognition failed on a frame', self.recognise)
-        while True:
-            with self._wake:
-                while self._pending is None and not self._stop:
-                    self._wake.wait(0.5)
-                if self._stop:
-                    return
-                job, self._pending = self._pending, None
-            recognise(*job)
+        # image may view msg's buffer: keep msg alive with it
+        self._worker.put((image, msg, fixation, self._saccade_epoch))
 
     def _recognition_foveator(self, width: int, height: int) -> Foveator:
         p = self._p
