@@ -17,10 +17,9 @@ from foveation_node.core.synthetic import white_noise
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
 from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import spinning, wait_until
 
 GazeState = message('active_vision_msgs/msg/GazeState')
 Image = message('sensor_msgs/msg/Image')
@@ -51,20 +50,12 @@ def graph(context):
     camera = Camera(context)
     foveation = fov_node.FoveationNode(
         context=context, parameter_overrides=[Parameter('f0', value=F0)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(camera)
-    executor.add_node(foveation)
-    assert wait_until(lambda: camera.image_pub.get_subscription_count() > 0
-                      and camera.gaze_pub.get_subscription_count() > 0
-                      and foveation._pub.get_subscription_count() > 0
-                      and foveation._jpeg_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
-    try:
+    with spinning(context, [camera, foveation],
+                  lambda: camera.image_pub.get_subscription_count() > 0
+                  and camera.gaze_pub.get_subscription_count() > 0
+                  and foveation._pub.get_subscription_count() > 0
+                  and foveation._jpeg_pub.get_subscription_count() > 0, TIMEOUT) as executor:
         yield camera, foveation, executor
-    finally:
-        executor.remove_node(camera)
-        executor.remove_node(foveation)
-        foveation.destroy_node()
-        camera.destroy_node()
 
 
 def _scene(seed: int = 1) -> np.ndarray:

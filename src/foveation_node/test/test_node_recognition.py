@@ -17,10 +17,9 @@ from foveation_node import node as fov_node
 from vizzy_runtime.convert import numpy_to_image
 from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import spinning, wait_until
 
 GazeState = message('active_vision_msgs/msg/GazeState')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
@@ -76,20 +75,12 @@ def graph(context, stub_model):
         Parameter('model_path', value=str(model)), Parameter('labels_path', value=str(labels)),
         Parameter('f0', value=30.0), Parameter('recognition_rate_hz', value=50.0),
         Parameter('top_k', value=3), Parameter('saccade_min_interval_s', value=0.0)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(camera)
-    executor.add_node(foveation)
-    assert wait_until(lambda: camera.image_pub.get_subscription_count() > 0
-                      and camera.info_pub.get_subscription_count() > 0
-                      and foveation._det_pub.get_subscription_count() > 0
-                      and foveation._gaze_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
-    try:
+    with spinning(context, [camera, foveation],
+                  lambda: camera.image_pub.get_subscription_count() > 0
+                  and camera.info_pub.get_subscription_count() > 0
+                  and foveation._det_pub.get_subscription_count() > 0
+                  and foveation._gaze_pub.get_subscription_count() > 0, TIMEOUT) as executor:
         yield camera, foveation, executor
-    finally:
-        executor.remove_node(camera)
-        executor.remove_node(foveation)
-        foveation.destroy_node()
-        camera.destroy_node()
 
 
 def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:

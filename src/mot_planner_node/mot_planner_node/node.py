@@ -71,9 +71,8 @@ from mot_planner_node.core.regions import constraint_areas
 from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
 from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
-from vizzy_runtime.ros import (DurabilityPolicy, HistoryPolicy, Node, QoSProfile,
-                               ReliabilityPolicy, message, qos_profile_sensor_data)
-from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC, TransformBuffer
+from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
+from vizzy_runtime.tf import TransformBuffer, TransformListener
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
@@ -83,7 +82,6 @@ TrackArray = message('active_vision_msgs/msg/TrackArray')
 AttentionRegions = message('active_vision_msgs/msg/AttentionRegions')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
-TFMessage = message('tf2_msgs/msg/TFMessage')
 
 IMAGE_TOPIC = '/vizzy/left/image_raw'
 CAMERA_INFO_TOPIC = '/vizzy/left/camera_info'
@@ -270,18 +268,8 @@ class MotPlannerNode(Node):
         self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
             guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
-        # tf2_ros' listener QoS; our own subscriptions (not vizzy_runtime.tf.TransformListener)
-        # so that each /tf message also records the camera's orientation at its stamp.
-        tf_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                            reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.VOLATILE)
-        static_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                                reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.create_subscription(TFMessage, TF_TOPIC, guarded(
-            self, f'{TF_TOPIC}: skipped a TFMessage', self._on_tf), tf_qos)
-        self.create_subscription(TFMessage, TF_STATIC_TOPIC, guarded(
-            self, f'{TF_STATIC_TOPIC}: skipped a TFMessage', self._on_tf), static_qos)
+        # each /tf message also records the camera's pose at its stamp (ego-motion)
+        self._tf_listener = TransformListener(self._tf, self, on_update=self._on_tf)
         p = self._p
         self.get_logger().info(
             f'tracking people in {IMAGE_TOPIC} onto {TRACKS_TOPIC}, {ATTENTION_TOPIC}'
@@ -324,7 +312,6 @@ class MotPlannerNode(Node):
             self._k = k
 
     def _on_tf(self, msg: Any) -> None:
-        self._tf.set_transform_messages(msg.transforms)
         if not msg.transforms or not self._p['ego_motion']:
             return
         stamp = max(_seconds(t.header.stamp) for t in msg.transforms)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -227,16 +227,19 @@ class TransformListener:
     /tf: reliable, volatile, keep last 100 (tf2_ros' listener QoS); /tf_static: reliable,
     transient local, keep last 100, so a late joiner still gets every static broadcaster's latched
     message. A bad message (NaN, zero quaternion, empty frame id) is logged, throttled, and skipped;
-    the node keeps running.
+    the node keeps running. on_update(msg), if given, runs after each message went into the buffer
+    (e.g. to keep a history of a frame at the message's stamp).
     """
 
     def __init__(self, buffer: TransformBuffer, node: Any, *, tf_topic: str = TF_TOPIC,
-                 tf_static_topic: str = TF_STATIC_TOPIC) -> None:
+                 tf_static_topic: str = TF_STATIC_TOPIC,
+                 on_update: Callable[[Any], None] | None = None) -> None:
         from vizzy_runtime.node_tools import guarded
         from vizzy_runtime.ros import (
             DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, message)
 
         self.buffer = buffer
+        self._on_update = on_update
         tf_message = message('tf2_msgs/msg/TFMessage')
         dynamic_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                                  reliability=ReliabilityPolicy.RELIABLE,
@@ -256,3 +259,5 @@ class TransformListener:
 
     def _on_tf(self, msg: Any) -> None:
         self.buffer.set_transform_messages(msg.transforms)
+        if self._on_update is not None:
+            self._on_update(msg)
