@@ -90,7 +90,6 @@ def test_pipeline_with_classifier_skips_non_cylinders(frames, classifier) -> Non
             if lab == 0 and purity > 0.9 and p < 0.5:
                 rejected_non_cylinders += 1
                 assert all(c is not cl for c in with_c.clusters)    # not fitted, not reported
-        assert with_c.timings_ms['classification'] > 0.0
     assert rejected_non_cylinders >= 4
 
 
