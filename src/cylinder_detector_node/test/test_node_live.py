@@ -20,7 +20,7 @@ from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
@@ -59,7 +59,7 @@ def graph(context):
         yield camera, detector, executor
 
 
-def _cloud_msg(xyz: np.ndarray, stamp_sec: int) -> Any:
+def _cloud_message(xyz: np.ndarray, stamp_sec: int) -> Any:
     grid = np.empty(xyz.shape[:2], dtype=XYZ)
     grid['x'], grid['y'], grid['z'] = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     msg = array_to_pointcloud2(grid)
@@ -76,21 +76,20 @@ def _image_msg(rgb: np.ndarray, stamp_sec: int) -> Any:
 
 
 def _send_until(camera: Camera, executor: Any, msg: Any, done: Any, image: Any = None) -> bool:
-    """Publish (image and) msg again every second (sensor data QoS is best effort) until done()."""
-    for _ in range(int(TIMEOUT)):
+    """Publish (image and) msg again every second until done()."""
+    def publish() -> None:
         if image is not None:
             camera.image_pub.publish(image)
             wait_until(lambda: False, 0.05, spin=executor)   # let the image arrive first
         camera.cloud_pub.publish(msg)
-        if wait_until(done, 1.0, spin=executor):
-            return True
-    return False
+
+    return publish_until(publish, done, executor, TIMEOUT, period=1.0)
 
 
 def test_two_upright_cylinders_on_a_table(graph) -> None:
     camera, detector, executor = graph
     scene = make_tabletop(np.random.default_rng(3), n_cylinders=2, n_distractors=0)
-    msg = _cloud_msg(scene.cloud, 42)
+    msg = _cloud_message(scene.cloud, 42)
     assert msg.height == 480 and msg.width == 640
     stamped = lambda a: a.header.stamp.sec == 42   # noqa: E731
     marked = lambda m: m.markers and m.markers[0].header.stamp.sec == 42   # noqa: E731
@@ -130,7 +129,7 @@ def test_two_upright_cylinders_on_a_table(graph) -> None:
 
 def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capsys) -> None:
     camera, detector, executor = graph
-    msg = _cloud_msg(np.full((48, 64, 3), np.nan), 7)
+    msg = _cloud_message(np.full((48, 64, 3), np.nan), 7)
     assert _send_until(camera, executor, msg,
                        lambda: any(a.header.stamp.sec == 7 for a in camera.arrays))
     assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 7)
@@ -140,7 +139,7 @@ def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capsys) -> Non
 
     # a bare table (no objects): empty array, the node keeps working; parameters change live
     bare = make_tabletop(np.random.default_rng(0), n_cylinders=0, n_distractors=0)
-    assert _send_until(camera, executor, _cloud_msg(bare.cloud, 8),
+    assert _send_until(camera, executor, _cloud_message(bare.cloud, 8),
                        lambda: any(a.header.stamp.sec == 8 for a in camera.arrays))
     assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 8)
     assert detector.set_parameters([Parameter('method', value='rabbani'),
@@ -189,7 +188,7 @@ def rendered():
 def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered, capsys) -> None:
     camera, detector, executor = graph
     assert detector.classifier is not None
-    cloud, image = _cloud_msg(rendered.cloud, 50), _image_msg(rendered.image, 50)
+    cloud, image = _cloud_message(rendered.cloud, 50), _image_msg(rendered.image, 50)
     stamped = lambda a: a.header.stamp.sec == 50   # noqa: E731
     assert _send_until(camera, executor, cloud, lambda: any(map(stamped, camera.arrays)), image)
     out = next(a for a in camera.arrays if stamped(a))
@@ -203,7 +202,7 @@ def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered,
         assert 0.5 <= c.confidence <= 1.0 and 0.0 < c.fit_quality <= 1.0
     # without the classifier the same frame gives non-cylinders too (Eq. 4.4 alone lets them through)
     assert detector.set_parameters([Parameter('use_classifier', value=False)])[0].successful
-    assert _send_until(camera, executor, _cloud_msg(rendered.cloud, 51),
+    assert _send_until(camera, executor, _cloud_message(rendered.cloud, 51),
                        lambda: any(a.header.stamp.sec == 51 for a in camera.arrays), image)
     out_no = next(a for a in camera.arrays if a.header.stamp.sec == 51)
     assert len(out_no.cylinders) > len(out.cylinders)
@@ -213,7 +212,7 @@ def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered,
     assert detector.set_parameters([Parameter('use_classifier', value=True)])[0].successful
     capsys.readouterr()
     small = _image_msg(rendered.image[::2, ::2], 52)
-    assert _send_until(camera, executor, _cloud_msg(rendered.cloud, 52),
+    assert _send_until(camera, executor, _cloud_message(rendered.cloud, 52),
                        lambda: any(a.header.stamp.sec == 52 for a in camera.arrays), small)
     assert not detector.last_classified
     assert wait_until(lambda: 'image 320x240 does not match the 640x480 cloud' in capsys.readouterr().err,

@@ -19,7 +19,7 @@ from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 GazeState = message('active_vision_msgs/msg/GazeState')
 Image = message('sensor_msgs/msg/Image')
@@ -64,12 +64,8 @@ def _scene(seed: int = 1) -> np.ndarray:
 
 
 def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:
-    """Publish msg again every 0.2 s (sensor data QoS is best effort) until done()."""
-    for _ in range(int(TIMEOUT / 0.2)):
-        camera.image_pub.publish(msg)
-        if wait_until(done, 0.2, spin=executor):
-            return True
-    return False
+    """Publish msg again every 0.2 s until done()."""
+    return publish_until(lambda: camera.image_pub.publish(msg), done, executor, TIMEOUT)
 
 
 def _high_pass(image: np.ndarray) -> np.ndarray:
@@ -85,11 +81,11 @@ def test_foveates_and_compresses(graph) -> None:
     msg.header.stamp.sec = 42
     assert _send_until(camera, executor, msg, lambda: camera.images and camera.jpegs)
 
-    out_msg = camera.images[-1]
-    assert (out_msg.encoding, out_msg.width, out_msg.height) == ('rgb8', WIDTH, HEIGHT)
-    assert out_msg.header.frame_id == 'left_camera_optical_frame'
-    assert out_msg.header.stamp.sec == 42
-    out = image_to_numpy(out_msg)
+    published = camera.images[-1]
+    assert (published.encoding, published.width, published.height) == ('rgb8', WIDTH, HEIGHT)
+    assert published.header.frame_id == 'left_camera_optical_frame'
+    assert published.header.stamp.sec == 42
+    out = image_to_numpy(published)
     # the fovea keeps the original pixels (within the pyramid's rounding)...
     centre = np.s_[60 - 1:60 + 2, 80 - 1:80 + 2]
     assert np.abs(out[centre].astype(int) - scene[centre].astype(int)).max() <= 2

@@ -19,7 +19,7 @@ from vizzy_runtime.ros import message, qos_profile_sensor_data
 from vizzy_runtime.rclpy_compat.context import Context
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 GazeState = message('active_vision_msgs/msg/GazeState')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
@@ -84,13 +84,12 @@ def graph(context, stub_model):
 
 
 def _send_until(camera: Camera, executor: Any, msg: Any, done: Any) -> bool:
-    """Publish camera_info and msg every 0.2 s (best effort QoS) until done()."""
-    for _ in range(int(TIMEOUT / 0.2)):
+    """Publish camera_info and msg every 0.2 s until done()."""
+    def publish() -> None:
         camera.info_pub.publish(_camera_info())
         camera.image_pub.publish(msg)
-        if wait_until(done, 0.2, spin=executor):
-            return True
-    return False
+
+    return publish_until(publish, done, executor, TIMEOUT)
 
 
 def test_detections_per_pass_and_a_saccade_to_the_object(graph) -> None:

@@ -100,6 +100,17 @@ def node_under_test(node_factory: Callable[[], Any]) -> Iterator[Any]:
         rclpy.try_shutdown()
 
 
+def publish_until(publish: Callable[[], Any], done: Callable[[], bool], spin: Any,
+                  timeout: float = 10.0, period: float = 0.2) -> bool:
+    """Call publish() every period s while spinning until done() (best-effort QoS, such as sensor
+    data, may drop a sample: send it again); False if done() never held within timeout."""
+    for _ in range(max(1, int(timeout / period))):
+        publish()
+        if wait_until(done, period, spin=spin):
+            return True
+    return False
+
+
 @contextlib.contextmanager
 def spinning(context: Any, nodes: Sequence[Any], ready: Callable[[], bool],
              timeout: float = 10.0) -> Iterator[Any]:
