@@ -1,5 +1,11 @@
-"""Test-wide setup: every pytest run gets its own DDS domain so concurrent runs and demos never mix,
-and every test can ask for `context`, an initialized bundled-rclpy context of its own."""
+"""Test-wide setup: every pytest run gets its own DDS domain (unless the caller chose one) so
+concurrent runs and demos never mix, and every test can ask for `context`, an initialized context
+of its own on the runtime under test.
+
+The runtime under test: the bundled one (VIZZY_RUNTIME=bundled, the default here), or the real
+rclpy when the caller set VIZZY_RUNTIME=ros (the real-rclpy tier, run by .venv-ros/bin/python:
+see scripts/test_ros.sh). Tests marked `live` run on both; the rest need the bundled runtime or
+no runtime at all, and the real-rclpy tier deselects them."""
 
 import os
 import random
@@ -7,12 +13,12 @@ import random
 import pytest
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 200)))
-os.environ['VIZZY_RUNTIME'] = 'bundled'
+os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 
 
 @pytest.fixture
 def context():
-    from vizzy_runtime.rclpy_compat.context import Context
+    from vizzy_runtime.ros import Context
     ctx = Context()
     ctx.init(['test'])
     yield ctx

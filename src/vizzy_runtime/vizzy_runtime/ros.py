@@ -8,7 +8,10 @@ Nodes write:
     from vizzy_runtime.ros import rclpy, Node, message, qos_profile_sensor_data, ...
     Image = message('sensor_msgs/msg/Image')
 
-Set VIZZY_RUNTIME=bundled to use the bundled runtime even where rclpy is importable.
+VIZZY_RUNTIME chooses: unset, the real rclpy when importable, else the bundled runtime;
+`bundled`, the bundled runtime even where rclpy is importable; `ros`, the real rclpy or an
+ImportError saying why (the real-rclpy test tier and .venv-ros use it, so they can never test the
+bundled runtime by mistake).
 """
 
 from __future__ import annotations
@@ -17,15 +20,22 @@ import importlib
 import os
 from typing import Any
 
+RUNTIME_CHOICE = os.environ.get('VIZZY_RUNTIME', '')
+if RUNTIME_CHOICE not in ('', 'bundled', 'ros'):
+    raise ImportError(f'VIZZY_RUNTIME={RUNTIME_CHOICE!r}: expected "bundled", "ros" or unset')
+
 USING_REAL_ROS = False
-if os.environ.get('VIZZY_RUNTIME', '') != 'bundled':
+if RUNTIME_CHOICE != 'bundled':
     try:
         import rclpy  # type: ignore[import-not-found,no-redef]
         USING_REAL_ROS = True
-    except ImportError:
-        pass
+    except ImportError as exc:
+        if RUNTIME_CHOICE == 'ros':
+            raise ImportError(f'VIZZY_RUNTIME=ros but the real rclpy does not import ({exc}); '
+                              'use .venv-ros/bin/python or source ROS 2 Jazzy') from None
 
 if USING_REAL_ROS:
+    from rclpy.context import Context  # type: ignore[import-not-found]
     from rcl_interfaces.msg import (  # type: ignore[import-not-found]
         FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult)
     from rclpy.duration import Duration  # type: ignore[import-not-found]
@@ -39,6 +49,7 @@ if USING_REAL_ROS:
     from rclpy.time import Time  # type: ignore[import-not-found]
 else:
     from . import rclpy_compat as rclpy  # type: ignore[no-redef]
+    from .rclpy_compat.context import Context  # type: ignore[assignment]
     from .rclpy_compat.duration import Duration  # type: ignore[assignment]
     from .rclpy_compat.executors import (  # type: ignore[assignment]
         ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
@@ -71,7 +82,7 @@ def message(typename: str) -> Any:
 
 
 __all__ = [
-    'USING_REAL_ROS', 'Duration', 'DurabilityPolicy', 'ExternalShutdownException',
+    'USING_REAL_ROS', 'Context', 'Duration', 'DurabilityPolicy', 'ExternalShutdownException',
     'FloatingPointRange', 'HistoryPolicy', 'IntegerRange', 'MultiThreadedExecutor', 'Node',
     'Parameter', 'ParameterDescriptor', 'ParameterType', 'QoSProfile', 'ReliabilityPolicy',
     'SetParametersResult', 'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched',

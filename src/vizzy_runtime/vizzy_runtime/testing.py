@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import time
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
@@ -22,6 +23,34 @@ def wait_until(predicate: Callable[[], bool], timeout: float = 10.0, spin: Any =
         else:
             time.sleep(0.005)
     return predicate()
+
+
+def repo_root() -> Path:
+    """The source checkout (tests run from it; .venv-ros lives at its top)."""
+    return Path(__file__).resolve().parents[3]
+
+
+def real_rclpy_python() -> Path:
+    """The interpreter of the real-rclpy tier (.venv-ros/bin/python), for tests that start
+    processes on the real rclpy beside bundled-runtime ones; skips the test, with the reason
+    setup recorded, where that tier could not be set up."""
+    import pytest
+
+    python = repo_root() / '.venv-ros' / 'bin' / 'python'
+    if python.is_file() and os.access(python, os.X_OK):
+        return python
+    skipped = repo_root() / '.venv-ros.skipped'
+    reason = skipped.read_text().strip() if skipped.is_file() else 'run `make setup` to create it'
+    pytest.skip(f'no .venv-ros (the real rclpy): {reason}')
+
+
+def real_rclpy_env(**extra: str) -> dict[str, str]:
+    """The environment for a .venv-ros process: the caller's, with VIZZY_RUNTIME=ros (the
+    real rclpy or an error) and the same ROS_DOMAIN_ID."""
+    env = dict(os.environ, VIZZY_RUNTIME='ros', PYTHONUNBUFFERED='1')
+    env.pop('PYTHONPATH', None)
+    env.update(extra)
+    return env
 
 
 # --- a node's parameter table (PARAMETERS: (name, default, description) rows, and its check) ----
