@@ -12,4 +12,6 @@ if [ ! -x .venv-ros/bin/python ]; then
 fi
 version=$(.venv-ros/bin/python -c 'from importlib.metadata import version; print(version("ros-jazzy-rclpy"))')
 echo "== real-rclpy tier: ROS 2 Jazzy rclpy $version (.venv-ros), tests marked live"
+# Fast DDS discovers and talks on localhost only (no multicast beyond lo), like the bundled runtime.
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 VIZZY_RUNTIME=ros exec .venv-ros/bin/python -m pytest -m live "$@"

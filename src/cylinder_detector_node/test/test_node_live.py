@@ -16,11 +16,10 @@ import pytest
 from cylinder_detector_node import node as cyl_node
 from cylinder_detector_node.core.scene import make_tabletop
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
-from vizzy_runtime.ros import message, qos_profile_sensor_data
-from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
 from vizzy_runtime.testing import publish_until, spinning, wait_until
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
@@ -127,15 +126,17 @@ def test_two_upright_cylinders_on_a_table(graph) -> None:
     assert detector.frames_processed >= 1
 
 
-def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capsys) -> None:
+def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capfd) -> None:
     camera, detector, executor = graph
     msg = _cloud_message(np.full((48, 64, 3), np.nan), 7)
     assert _send_until(camera, executor, msg,
                        lambda: any(a.header.stamp.sec == 7 for a in camera.arrays))
     assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 7)
-    assert wait_until(lambda: '0 finite points' in capsys.readouterr().err, TIMEOUT, spin=executor)
-    assert any(m.markers[0].header.stamp.sec == 7 and [k.action for k in m.markers] == [Marker.DELETEALL]
-               for m in camera.markers)
+    assert wait_until(lambda: '0 finite points' in capfd.readouterr().err, TIMEOUT, spin=executor)
+    # the markers travel on their own topic: they may arrive after the array
+    assert wait_until(lambda: any(m.markers[0].header.stamp.sec == 7
+                                  and [k.action for k in m.markers] == [Marker.DELETEALL]
+                                  for m in camera.markers), TIMEOUT, spin=executor)
 
     # a bare table (no objects): empty array, the node keeps working; parameters change live
     bare = make_tabletop(np.random.default_rng(0), n_cylinders=0, n_distractors=0)
@@ -146,7 +147,7 @@ def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capsys) -> Non
                                     Parameter('classifier_model', value='/nonexistent/model.pt')])[0].successful
     assert detector._params[1].method == 'rabbani'
     assert detector.classifier is None
-    assert 'classifier unavailable' in capsys.readouterr().err
+    assert 'classifier unavailable' in capfd.readouterr().err
     assert not detector.set_parameters([Parameter('classifier_threshold', value=1.5)])[0].successful
     assert not detector.set_parameters([Parameter('radius_min_m', value=0.5)])[0].successful
     assert not detector.set_parameters([Parameter('bias', value='sideways')])[0].successful
@@ -185,7 +186,7 @@ def rendered():
     return frame
 
 
-def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered, capsys) -> None:
+def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered, capfd) -> None:
     camera, detector, executor = graph
     assert detector.classifier is not None
     cloud, image = _cloud_message(rendered.cloud, 50), _image_msg(rendered.image, 50)
@@ -210,11 +211,11 @@ def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered,
 
     # an image of another size: a clear message, detection goes on without the classifier
     assert detector.set_parameters([Parameter('use_classifier', value=True)])[0].successful
-    capsys.readouterr()
+    capfd.readouterr()
     small = _image_msg(rendered.image[::2, ::2], 52)
     assert _send_until(camera, executor, _cloud_message(rendered.cloud, 52),
                        lambda: any(a.header.stamp.sec == 52 for a in camera.arrays), small)
     assert not detector.last_classified
-    assert wait_until(lambda: 'image 320x240 does not match the 640x480 cloud' in capsys.readouterr().err,
+    assert wait_until(lambda: 'image 320x240 does not match the 640x480 cloud' in capfd.readouterr().err,
                       TIMEOUT, spin=executor)
     assert any(a.header.stamp.sec == 52 and a.cylinders for a in camera.arrays)

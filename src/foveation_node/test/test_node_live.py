@@ -15,11 +15,10 @@ import pytest
 from foveation_node import node as fov_node
 from foveation_node.core.synthetic import white_noise
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
-from vizzy_runtime.ros import message, qos_profile_sensor_data
-from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
 from vizzy_runtime.testing import publish_until, spinning, wait_until
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 GazeState = message('active_vision_msgs/msg/GazeState')
 Image = message('sensor_msgs/msg/Image')
@@ -122,18 +121,18 @@ def test_saccades_suppress_output(graph) -> None:
     assert _send_until(camera, executor, msg, lambda: len(camera.images) > before)
 
 
-def test_bad_images_are_dropped_and_the_node_keeps_working(graph, capsys) -> None:
+def test_bad_images_are_dropped_and_the_node_keeps_working(graph, capfd) -> None:
     camera, foveation, executor = graph
     mono = numpy_to_image(np.full((HEIGHT, WIDTH), 100, np.uint8), 'mono8')
     assert _send_until(camera, executor, mono,
-                       lambda: "'mono8'" in capsys.readouterr().err)
+                       lambda: "'mono8'" in capfd.readouterr().err)
     assert not camera.images
 
     # a fixation outside the image: logged and skipped, nothing published
     result = foveation.set_parameters([Parameter('fixation_u', value=1000.0)])[0]
     assert result.successful
     msg = numpy_to_image(_scene(), 'rgb8')
-    assert _send_until(camera, executor, msg, lambda: 'outside' in capsys.readouterr().err)
+    assert _send_until(camera, executor, msg, lambda: 'outside' in capfd.readouterr().err)
     assert not camera.images
 
     # back on the image, and a new fovea size (the Foveator is rebuilt): the node works

@@ -15,11 +15,10 @@ import pytest
 
 from foveation_node import node as fov_node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.ros import message, qos_profile_sensor_data
-from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
 from vizzy_runtime.testing import publish_until, spinning, wait_until
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 GazeState = message('active_vision_msgs/msg/GazeState')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
@@ -147,19 +146,19 @@ def test_no_saccade_from_a_stale_frame_or_when_disabled(graph) -> None:
     assert foveation.saccades_sent == 1
 
 
-def test_a_bad_model_is_logged_and_the_node_keeps_foveating(graph, tmp_path, capsys) -> None:
+def test_a_bad_model_is_logged_and_the_node_keeps_foveating(graph, tmp_path, capfd) -> None:
     camera, foveation, executor = graph
     bad = tmp_path / 'bad.pt'
     bad.write_bytes(b'\x00garbage')
     assert foveation.set_parameters([Parameter('model_path', value=str(bad))])[0].successful
     assert foveation._classifier is None
-    assert 'cannot load TorchScript model' in capsys.readouterr().err
+    assert 'cannot load TorchScript model' in capfd.readouterr().err
     frames = foveation.frames_published
     assert _send_until(camera, executor, _image_msg(),
                        lambda: foveation.frames_published > frames + 2)
     assert foveation.recognitions == 0
     # an empty path switches recognition off without complaint; bad values are refused
     assert foveation.set_parameters([Parameter('model_path', value='')])[0].successful
-    assert 'recognition off' in capsys.readouterr().err
+    assert 'recognition off' in capfd.readouterr().err
     assert not foveation.set_parameters([Parameter('saliency_threshold', value=1.5)])[0].successful
     assert not foveation.set_parameters([Parameter('top_k', value=0)])[0].successful

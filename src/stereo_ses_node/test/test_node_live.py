@@ -17,11 +17,11 @@ from stereo_ses_node import node as ses_node
 from stereo_ses_node.core.geometry import vergence_poses
 from stereo_ses_node.core.synthetic import plane_texture, render_plane
 from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
-from vizzy_runtime.ros import message, qos_profile_latched, qos_profile_sensor_data
-from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.ros import (
+    Context, Node, Parameter, message, qos_profile_latched, qos_profile_sensor_data)
 from vizzy_runtime.testing import spinning, wait_until
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
@@ -133,17 +133,17 @@ def _cells(msg: Any) -> np.ndarray:
     return pointcloud2_to_array(msg).reshape(-1)
 
 
-def test_points_cells_gaze_and_saccades(graph, capsys) -> None:
+def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     rig, ses, executor = graph
     # no camera_info yet: skipped with a message
     assert _feed(rig, ses, executor)
     assert ses.frames_skipped == 1 and ses.frames_fused == 0
-    assert 'waiting for /vizzy/left/camera_info' in capsys.readouterr().err
+    assert 'waiting for /vizzy/left/camera_info' in capfd.readouterr().err
     # no tf yet: skipped
     rig.publish_info()
     assert wait_until(lambda: len(ses._k) == 2, TIMEOUT, spin=executor)
     assert _feed(rig, ses, executor)
-    assert ses.frames_skipped == 2 and 'no usable camera poses' in capsys.readouterr().err
+    assert ses.frames_skipped == 2 and 'no usable camera poses' in capfd.readouterr().err
 
     rig.publish_tf()
     assert wait_until(lambda: ses._tf.can_transform('ego', FRAMES['right']), TIMEOUT,
@@ -234,7 +234,7 @@ def test_points_cells_gaze_and_saccades(graph, capsys) -> None:
     assert ses.frames_in_saccade == suppressed + 1 and ses.frames_fused == fused
 
 
-def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capsys) -> None:
+def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capfd) -> None:
     rig, ses, executor = graph
     rig.publish_info()
     rig.publish_tf()
@@ -248,17 +248,17 @@ def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capsys) -
     stamp = next(_stamps)
     narrow = rig.image('right', stamp, rig.images['right'][:, :-20].copy())
     assert _feed(rig, ses, executor, rig.image('left', stamp), narrow)
-    assert 'differ' in capsys.readouterr().err
+    assert 'differ' in capfd.readouterr().err
     # an image whose size disagrees with camera_info (both eyes)
     stamp = next(_stamps)
     small = {e: rig.image(e, stamp, rig.images[e][:200, :280].copy()) for e in FRAMES}
     assert _feed(rig, ses, executor, small['left'], small['right'])
-    assert 'camera_info' in capsys.readouterr().err
+    assert 'camera_info' in capfd.readouterr().err
     # textureless images: only NaN disparities
     stamp = next(_stamps)
     flat = {e: rig.image(e, stamp, np.full((H, W, 3), 90, np.uint8)) for e in FRAMES}
     assert _feed(rig, ses, executor, flat['left'], flat['right'])
-    assert 'no valid correspondences' in capsys.readouterr().err
+    assert 'no valid correspondences' in capfd.readouterr().err
     assert ses.frames_skipped == 3 and ses.frames_fused == 1
     assert np.array_equal(ses._ses.n_obs, obs) and np.array_equal(ses._ses.info, info)
 
@@ -278,13 +278,13 @@ def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capsys) -
         rig.image_pubs['right'].publish(rig.image('right', 8000 + 2 * k))
         rig.image_pubs['left'].publish(rig.image('left', 8001 + 2 * k))
         wait_until(lambda: False, 0.05, spin=executor)
-    assert wait_until(lambda: 'stamps differ' in capsys.readouterr().err, TIMEOUT,
+    assert wait_until(lambda: 'stamps differ' in capfd.readouterr().err, TIMEOUT,
                       spin=executor)
     assert ses.pairs_received == received and ses.images_unpaired >= 6
     # a mono8 image is dropped with a message
     mono = rig.image('left', 6000, np.zeros((H, W), np.uint8), 'mono8')
     rig.image_pubs['left'].publish(mono)
-    assert wait_until(lambda: "'mono8'" in capsys.readouterr().err, TIMEOUT, spin=executor)
+    assert wait_until(lambda: "'mono8'" in capfd.readouterr().err, TIMEOUT, spin=executor)
     # the node still works
     fused = ses.frames_fused
     assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1

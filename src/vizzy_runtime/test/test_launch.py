@@ -17,6 +17,7 @@ OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/
            '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states', '/clock'}
 
 
+@pytest.mark.live  # on the real tier every node runs on the real rclpy (VIZZY_RUNTIME=ros is inherited)
 def test_graph_starts_and_stops_cleanly(tmp_path):
     graph = load_graph(default_graph_file())
     assert {n.name for n in graph.nodes} == {'sim', 'gaze_controller', 'foveation', 'stereo_ses',

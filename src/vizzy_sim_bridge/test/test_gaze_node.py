@@ -13,10 +13,7 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
-from vizzy_runtime.ros import message, qos_profile_latched
-from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
 from vizzy_runtime.testing import spinning, wait_until
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
@@ -24,6 +21,8 @@ from vizzy_sim_bridge.core.gaze import (
     solve_fixation, velocity_limits)
 from vizzy_sim_bridge.gaze_controller_node import (
     COMMAND_TOPIC, JOINT_COMMANDS_TOPIC, PARAMETERS, STATE_TOPIC, GazeControllerNode)
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')

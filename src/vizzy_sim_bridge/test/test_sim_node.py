@@ -13,17 +13,17 @@ import numpy as np
 import pytest
 
 from vizzy_runtime.convert import image_to_numpy, pointcloud2_to_array
-from vizzy_runtime.ros import message, qos_profile_latched, qos_profile_sensor_data
-from vizzy_runtime.rclpy_compat.context import Context
-from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
-from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.ros import (
+    Context, Node, Parameter, SingleThreadedExecutor, message, qos_profile_latched,
+    qos_profile_sensor_data)
 from vizzy_runtime.testing import wait_until
 from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.core.camera import camera_matrix
 from vizzy_sim_bridge.core.kinematics import (
     BASELINE, JOINT_LIMITS, JOINT_NAMES, frames_in_base, static_transforms)
 from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 Image = message('sensor_msgs/msg/Image')
