@@ -12,6 +12,9 @@ if [ ! -x .venv-ros/bin/python ]; then
 fi
 version=$(.venv-ros/bin/python -c 'from importlib.metadata import version; print(version("ros-jazzy-rclpy"))')
 echo "== real-rclpy tier: ROS 2 Jazzy rclpy $version (.venv-ros), tests marked live"
-# Fast DDS discovers and talks on localhost only (no multicast beyond lo), like the bundled runtime.
-export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# Fast DDS binds, announces and talks on 127.0.0.1 only, discovers by unicast (no multicast), and
+# reads UDP with an 8 MiB buffer (VGA images from Cyclone): the profile says why. SYSTEM_DEFAULT
+# lets rmw_fastrtps take its transports from the profile (LOCALHOST adds one on every interface).
+export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$PWD/src/vizzy_runtime/config/fastdds_loopback.xml}"
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-SYSTEM_DEFAULT}"
 VIZZY_RUNTIME=ros exec .venv-ros/bin/python -m pytest -m live "$@"

@@ -1,5 +1,8 @@
 """The `cylinder_detector` node (thesis chapter 4): cylinders in RGB-D point clouds.
 
+Topic names are relative (in: `points`, `image_raw`; out: `cylinders`, `cylinders/markers`); the
+graph remaps the inputs to the RGB-D sensor's, so below are the resolved defaults.
+
 Subscribes the organized PointCloud2 /vizzy/rgbd/points (sensor data QoS; any frame, normally the
 camera's optical frame) and the matching colour image /vizzy/rgbd/image_raw (rgb8/bgr8, same
 size), runs core.pipeline.detect_cylinders (tabletop segmentation, section 4.3.1; the
@@ -45,8 +48,8 @@ from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylin
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import SegmentParams
 from vizzy_runtime.convert import ConversionError, image_to_numpy, pointcloud2_to_array
-from vizzy_runtime.node_tools import (LatestWorker, declare_parameters, guarded, main_for,
-                                       replace_timer)
+from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
+                                      main_for, publish_from_thread, replace_timer)
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
@@ -56,76 +59,66 @@ Image = message('sensor_msgs/msg/Image')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 
-CLOUD_TOPIC = '/vizzy/rgbd/points'
-IMAGE_TOPIC = '/vizzy/rgbd/image_raw'
+# Relative names: the graph remaps the generic inputs (points:=vizzy/rgbd/points, ...) and the
+# node's namespace places everything; logs print the resolved names.
+CLOUD_TOPIC = 'points'
+IMAGE_TOPIC = 'image_raw'
 IMAGE_BUFFER = 8
-CYLINDERS_TOPIC = '/cylinders'
-MARKERS_TOPIC = '/cylinders/markers'
+CYLINDERS_TOPIC = 'cylinders'
+MARKERS_TOPIC = 'cylinders/markers'
 WARN_PERIOD_S = 5.0
 REPORT_PERIOD_S = 10.0
 
-# (name, default, description): the node declares exactly these.
-PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('heartbeat_period_s', 1.0,
-     'While no cloud arrives, publish an empty CylinderArray this often [s], in (0, 3600].'),
-    ('frame_id', 'base_link', 'Frame of the heartbeat CylinderArrays.'),
-    ('min_points', 50, 'Clouds with fewer finite points are reported and skipped, >= 0.'),
-    ('method', 'ours',
-     f'Orientation accumulator: {" or ".join(METHODS)} (GMM + curvature soft voting, thesis '
-     'Eq. 4.3) or Rabbani & van den Heuvel 2005 (uniform, normals only).'),
-    ('bias', 'mild',
-     f'Table 4.1 orientation prior for method ours: {", ".join(sorted(TABLE_4_1))} '
-     '(vertical = the table normal).'),
-    ('n_directions', 450, 'Orientation accumulator size N_d, in [1, 20000].'),
-    ('radius_min_m', 0.01, 'Smallest cylinder radius [m], in (0, radius_max_m).'),
-    ('radius_max_m', 0.1, 'Largest cylinder radius [m], in (radius_min_m, 2].'),
-    ('min_confidence', 0.5,
-     'Eq. 4.4 threshold N_model / N_cluster, in [0, 1]: clusters below it are not cylinders.'),
-    ('voxel_size_m', 0.01, 'Downsampling voxel for the plane RANSAC and clustering [m], in (0, 0.2].'),
-    ('plane_distance_m', 0.01, 'RANSAC inlier distance of the table plane [m], in (0, 0.2].'),
-    ('cluster_eps_m', 0.02, 'Euclidean clustering (DBSCAN) neighbourhood [m], in (0, 0.5].'),
-    ('min_cluster_points', 30, 'Smallest object cluster (downsampled points), in [3, 100000].'),
-    ('max_range_m', 3.0, 'Ignore points farther from the sensor [m]; 0 = no limit; in [0, 100].'),
-    ('use_classifier', True,
-     'Run the pre-attention CNN (section 4.3.2) on each cluster\'s image patch and fit only the '
-     'clusters it accepts (needs the matching image on ' + IMAGE_TOPIC + ').'),
-    ('classifier_threshold', 0.5, 'Clusters with P(cylinder) below this are rejected, in [0, 1].'),
-    ('classifier_model', '', 'Classifier weights (.pt); empty = the packaged model.'),
-    ('image_tolerance_s', 0.05,
-     'Largest stamp difference between a cloud and its image [s], in [0, 10].'),
+# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
+PARAMETERS: tuple[Param, ...] = (
+    Param('heartbeat_period_s', 1.0,
+          'While no cloud arrives, publish an empty CylinderArray this often [s], in (0, 3600].',
+          '(0, 3600]'),
+    Param('frame_id', 'base_link', 'Frame of the heartbeat CylinderArrays.',
+          constraints='not empty'),
+    Param('min_points', 50, 'Clouds with fewer finite points are reported and skipped, >= 0.',
+          '[0, inf)'),
+    Param('method', 'ours',
+          f'Orientation accumulator: {" or ".join(METHODS)} (GMM + curvature soft voting, '
+          'thesis Eq. 4.3) or Rabbani & van den Heuvel 2005 (uniform, normals only).',
+          choices=tuple(METHODS)),
+    Param('bias', 'mild',
+          f'Table 4.1 orientation prior for method ours: {", ".join(sorted(TABLE_4_1))} '
+          '(vertical = the table normal).', choices=tuple(sorted(TABLE_4_1))),
+    Param('n_directions', 450, 'Orientation accumulator size N_d, in [1, 20000].', '[1, 20000]'),
+    Param('radius_min_m', 0.01, 'Smallest cylinder radius [m], in (0, radius_max_m).',
+          '(0, 2]', constraints='below radius_max_m'),
+    Param('radius_max_m', 0.1, 'Largest cylinder radius [m], in (radius_min_m, 2].',
+          '(0, 2]', constraints='above radius_min_m'),
+    Param('min_confidence', 0.5,
+          'Eq. 4.4 threshold N_model / N_cluster, in [0, 1]: clusters below it are not '
+          'cylinders.', '[0, 1]'),
+    Param('voxel_size_m', 0.01, 'Downsampling voxel for the plane RANSAC and clustering [m], '
+          'in (0, 0.2].', '(0, 0.2]'),
+    Param('plane_distance_m', 0.01, 'RANSAC inlier distance of the table plane [m], in '
+          '(0, 0.2].', '(0, 0.2]'),
+    Param('cluster_eps_m', 0.02, 'Euclidean clustering (DBSCAN) neighbourhood [m], in '
+          '(0, 0.5].', '(0, 0.5]'),
+    Param('min_cluster_points', 30, 'Smallest object cluster (downsampled points), in '
+          '[3, 100000].', '[3, 100000]'),
+    Param('max_range_m', 3.0, 'Ignore points farther from the sensor [m]; 0 = no limit; in '
+          '[0, 100].', '[0, 100]'),
+    Param('use_classifier', True,
+          'Run the pre-attention CNN (section 4.3.2) on each cluster\'s image patch and fit '
+          'only the clusters it accepts (needs the matching image on ' + IMAGE_TOPIC + ').'),
+    Param('classifier_threshold', 0.5, 'Clusters with P(cylinder) below this are rejected, in '
+          '[0, 1].', '[0, 1]'),
+    Param('classifier_model', '', 'Classifier weights (.pt); empty = the packaged model.'),
+    Param('image_tolerance_s', 0.05,
+          'Largest stamp difference between a cloud and its image [s], in [0, 10].', '[0, 10]'),
 )
 
 
 def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is."""
-    if name == 'heartbeat_period_s' and not 0.0 < value <= 3600.0:
-        return f'heartbeat_period_s must be in (0, 3600], got {value}'
+    """Why value is not acceptable for parameter name, or None if it is: what the table's
+    ranges and choices cannot express."""
     if name == 'frame_id' and not value:
         return 'frame_id must not be empty'
-    if name == 'min_points' and value < 0:
-        return f'min_points must be >= 0, got {value}'
-    if name == 'method' and value not in METHODS:
-        return f'method must be one of {", ".join(METHODS)}, got {value!r}'
-    if name == 'bias' and value not in TABLE_4_1:
-        return f'bias must be one of {", ".join(sorted(TABLE_4_1))}, got {value!r}'
-    if name == 'n_directions' and not 1 <= value <= 20000:
-        return f'n_directions must be in [1, 20000], got {value}'
-    if name in ('radius_min_m', 'radius_max_m') and not (math.isfinite(value) and 0.0 < value <= 2.0):
-        return f'{name} must be in (0, 2] m, got {value}'
-    if name == 'min_confidence' and not 0.0 <= value <= 1.0:
-        return f'min_confidence must be in [0, 1], got {value}'
-    if name in ('voxel_size_m', 'plane_distance_m') and not 0.0 < value <= 0.2:
-        return f'{name} must be in (0, 0.2] m, got {value}'
-    if name == 'cluster_eps_m' and not 0.0 < value <= 0.5:
-        return f'cluster_eps_m must be in (0, 0.5] m, got {value}'
-    if name == 'min_cluster_points' and not 3 <= value <= 100000:
-        return f'min_cluster_points must be in [3, 100000], got {value}'
-    if name == 'max_range_m' and not 0.0 <= value <= 100.0:
-        return f'max_range_m must be in [0, 100] m (0 = no limit), got {value}'
-    if name == 'classifier_threshold' and not 0.0 <= value <= 1.0:
-        return f'classifier_threshold must be in [0, 1], got {value}'
-    if name == 'image_tolerance_s' and not 0.0 <= value <= 10.0:
-        return f'image_tolerance_s must be in [0, 10] s, got {value}'
     return None
 
 
@@ -269,21 +262,28 @@ class CylinderDetectorNode(Node):
 
         self._pub = self.create_publisher(CylinderArray, CYLINDERS_TOPIC, 10)
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, 10)
-        self.create_subscription(
-            PointCloud2, CLOUD_TOPIC, guarded(self, f'{CLOUD_TOPIC}: failed on a cloud',
+        # resolved names, for log lines
+        self._cloud_topic = self.resolve_topic_name(CLOUD_TOPIC)
+        self._image_topic = self.resolve_topic_name(IMAGE_TOPIC)
+        self._cloud_sub = self.create_subscription(
+            PointCloud2, CLOUD_TOPIC, guarded(self, f'{self._cloud_topic}: failed on a cloud',
                                               self._on_cloud), qos_profile_sensor_data)
-        self.create_subscription(
-            Image, IMAGE_TOPIC, guarded(self, f'{IMAGE_TOPIC}: failed on an image', self._on_image),
+        self._image_sub = self.create_subscription(
+            Image, IMAGE_TOPIC,
+            guarded(self, f'{self._image_topic}: failed on an image', self._on_image),
             qos_profile_sensor_data)
-        self._timer = self.create_timer(self._p['heartbeat_period_s'], self._on_heartbeat)
+        # guarded: a heartbeat racing with Ctrl-C ends spin quietly (ExternalShutdownException)
+        self._heartbeat = guarded(self, 'heartbeat failed', self._on_heartbeat)
+        self._timer = self.create_timer(self._p['heartbeat_period_s'], self._heartbeat)
         self._worker = LatestWorker('cylinder_detector', guarded(
-            self, f'{CLOUD_TOPIC}: failed on a cloud', self.process_cloud))
+            self, f'{self._cloud_topic}: failed on a cloud', self.process_cloud))
         p = self._p
         self.get_logger().info(
-            f'detecting cylinders in {CLOUD_TOPIC} onto {CYLINDERS_TOPIC} and {MARKERS_TOPIC}: '
+            f'detecting cylinders in {self._cloud_sub.topic_name} onto {self._pub.topic_name} and '
+            f'{self._marker_pub.topic_name}: '
             f'method {p["method"]}, bias {p["bias"]}, N_d {p["n_directions"]}, radius '
             f'{p["radius_min_m"]:g}-{p["radius_max_m"]:g} m, min confidence {p["min_confidence"]:g}, '
-            f'classifier {"on (threshold %g, images from %s)" % (p["classifier_threshold"], IMAGE_TOPIC) if p["use_classifier"] else "off"}')
+            f'classifier {"on (threshold %g, images from %s)" % (p["classifier_threshold"], self._image_sub.topic_name) if p["use_classifier"] else "off"}')
 
     # --- inputs ---------------------------------------------------------------------------------
 
@@ -314,7 +314,7 @@ class CylinderDetectorNode(Node):
         with self._lock:
             images = list(self._images)
         if not images:
-            return None, f'no image on {IMAGE_TOPIC} yet'
+            return None, f'no image on {self._image_topic} yet'
         t = stamp_s(stamp)
         best = min(images, key=lambda m: abs(stamp_s(m.header.stamp) - t))
         dt = abs(stamp_s(best.header.stamp) - t)
@@ -324,7 +324,7 @@ class CylinderDetectorNode(Node):
         try:
             return rgb_image(best), None
         except ValueError as exc:
-            return None, f'{IMAGE_TOPIC}: {exc}'
+            return None, f'{self._image_topic}: {exc}'
 
     def _on_heartbeat(self) -> None:
         if time.monotonic() - self._last_cloud < self._p['heartbeat_period_s']:
@@ -337,7 +337,7 @@ class CylinderDetectorNode(Node):
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
         if 'heartbeat_period_s' in changed:
             self._timer = replace_timer(self, self._timer, changed['heartbeat_period_s'],
-                                        self._on_heartbeat)
+                                        self._heartbeat)
         self._params = pipeline_params(self._p)   # check_all keeps FitParams valid
         if 'use_classifier' in changed or 'classifier_model' in changed:
             self._load_classifier()
@@ -357,7 +357,7 @@ class CylinderDetectorNode(Node):
         try:
             xyz = cloud_xyz(msg, self._p['min_points'])
         except ValueError as exc:
-            self._warn('cloud', f'{CLOUD_TOPIC}: no cylinders: {exc}')
+            self._warn('cloud', f'{self._cloud_topic}: no cylinders: {exc}')
             self._publish(msg.header, [])
             return None
         seg, fit = self._params
@@ -371,7 +371,7 @@ class CylinderDetectorNode(Node):
                 else:
                     why = problem
             if classifier is None:
-                self._warn('image', f'{CLOUD_TOPIC}: detecting without the classifier: {why}')
+                self._warn('image', f'{self._cloud_topic}: detecting without the classifier: {why}')
         det = detect_cylinders(xyz, seg, fit, image=image, classifier=classifier,
                                classifier_threshold=self._p['classifier_threshold'])
         self.last_classified = classifier is not None
@@ -379,15 +379,16 @@ class CylinderDetectorNode(Node):
         self.last_detection, self.last_frame_ms = det, ms
         self.frames_processed += 1
         if det.plane is None or (not det.cylinders and det.messages):
-            self._warn('pipeline', f'{CLOUD_TOPIC}: no cylinders: {"; ".join(det.messages)}')
+            self._warn('pipeline', f'{self._cloud_topic}: no cylinders: {"; ".join(det.messages)}')
         self._publish(msg.header, det.cylinders, det.probabilities)
         self._report(det, ms, xyz.shape)
         return det
 
     def _publish(self, header: Any, cylinders: list[FittedCylinder],
                  probabilities: list[float | None] | None = None) -> None:
-        self._pub.publish(cylinder_array(header, cylinders, probabilities))
-        self._marker_pub.publish(marker_array(header, cylinders, probabilities))
+        """From the worker thread."""
+        publish_from_thread(self, self._pub, cylinder_array(header, cylinders, probabilities))
+        publish_from_thread(self, self._marker_pub, marker_array(header, cylinders, probabilities))
 
     def _report(self, det: Detection, ms: float, shape: tuple[int, ...]) -> None:
         self._frame_ms.append(ms)
@@ -407,7 +408,9 @@ class CylinderDetectorNode(Node):
             f'processed, {self.frames_dropped} dropped while busy')
 
     def destroy_node(self) -> Any:
-        self._worker.close()
+        worker = getattr(self, '_worker', None)  # None: __init__ failed before it started
+        if worker is not None:
+            worker.close()
         return super().destroy_node()
 
 

@@ -6,13 +6,15 @@ import numpy as np
 
 from cylinder_detector_node import node
 from vizzy_runtime.convert import array_to_pointcloud2
-from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
+from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
+                                   parameter_refusals)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'cylinder_detector.yaml'
 
 
 def test_parameter_table_and_config() -> None:
-    check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'cylinder_detector')
+    check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'cylinder_detector',
+                          node.check_all)
 
 
 def test_clouds_are_checked() -> None:
@@ -34,10 +36,15 @@ def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
 
 
 def test_parameters_taken_together_and_mapped_to_the_core() -> None:
-    values = {name: default for name, default, _ in node.PARAMETERS}
+    values = {p.name: p.default for p in node.PARAMETERS}
     assert node.check_all(values) is None
     assert 'radius_min_m' in node.check_all({**values, 'radius_min_m': 0.2})
-    assert node.check_parameter('method', 'hough') and node.check_parameter('bias', 'up')
+    with parameter_refusals(node.PARAMETERS, node.check_parameter, node.check_all) as refused:
+        assert refused('method', 'hough') and refused('bias', 'up')
+        assert 'radius_max_m' in refused('radius_min_m', 0.2)
+        assert refused('frame_id', '') and refused('min_points', -1)
+        assert refused('radius_max_m', 2.5) and refused('voxel_size_m', 0.0)
+        assert refused('min_points', 0) is None and refused('max_range_m', 0.0) is None
     seg, fit = node.pipeline_params({**values, 'method': 'rabbani', 'max_range_m': 0.0})
     assert fit.method == 'rabbani' and seg.max_range is None
     assert fit.n_directions == values['n_directions'] and seg.voxel_size == values['voxel_size_m']

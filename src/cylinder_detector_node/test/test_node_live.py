@@ -16,7 +16,7 @@ import pytest
 from cylinder_detector_node import node as cyl_node
 from cylinder_detector_node.core.scene import make_tabletop
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_system_default
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -33,24 +33,27 @@ XYZ = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
 
 
 class Camera(Node):
-    """Publishes clouds; keeps what the detector publishes."""
+    """Publishes clouds and images (as a driver: the default reliable QoS); keeps what the
+    detector publishes. On the detector's resolved topic names."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, detector: Any) -> None:
         super().__init__('fake_rgbd', context=context, start_parameter_services=False)
         self.arrays: list[Any] = []
         self.markers: list[Any] = []
-        self.cloud_pub = self.create_publisher(PointCloud2, cyl_node.CLOUD_TOPIC,
-                                               qos_profile_sensor_data)
-        self.image_pub = self.create_publisher(Image, cyl_node.IMAGE_TOPIC, qos_profile_sensor_data)
-        self.create_subscription(CylinderArray, cyl_node.CYLINDERS_TOPIC, self.arrays.append, 10)
-        self.create_subscription(MarkerArray, cyl_node.MARKERS_TOPIC, self.markers.append, 10)
+        self.cloud_pub = self.create_publisher(PointCloud2, detector._cloud_sub.topic_name,
+                                               qos_profile_system_default)
+        self.image_pub = self.create_publisher(Image, detector._image_sub.topic_name,
+                                               qos_profile_system_default)
+        self.create_subscription(CylinderArray, detector._pub.topic_name, self.arrays.append, 10)
+        self.create_subscription(MarkerArray, detector._marker_pub.topic_name,
+                                 self.markers.append, 10)
 
 
 @pytest.fixture
 def graph(context):
-    camera = Camera(context)
     detector = cyl_node.CylinderDetectorNode(
         context=context, parameter_overrides=[Parameter('heartbeat_period_s', value=3600.0)])
+    camera = Camera(context, detector)
     with spinning(context, [camera, detector],
                   lambda: camera.cloud_pub.get_subscription_count() > 0
                   and detector._pub.get_subscription_count() > 0

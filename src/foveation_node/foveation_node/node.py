@@ -1,5 +1,8 @@
 """The `foveation` node (thesis chapter 2): smooth foveal vision of the left camera stream.
 
+Topic names are relative (`image_raw`, `camera_info`, `gaze/state` in; `~/image`, ... out); the
+graph remaps image_raw and camera_info to the left camera's, so below are the resolved defaults.
+
 Subscribes /vizzy/left/image_raw (sensor data QoS, rgb8 or bgr8), foveates each image at the
 current fixation with core.foveation.Foveator (section 2.3.1) and publishes
 
@@ -58,7 +61,8 @@ from foveation_node.core.recognition import (
     DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
     back_project, saccade_target, two_pass)
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
-from vizzy_runtime.node_tools import LatestWorker, declare_parameters, guarded, main_for
+from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
+                                      main_for, publish_from_thread)
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
 
 Image = message('sensor_msgs/msg/Image')
@@ -69,13 +73,15 @@ GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 FoveatedDetection = message('active_vision_msgs/msg/FoveatedDetection')
 FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
 
-INPUT_TOPIC = '/vizzy/left/image_raw'
-CAMERA_INFO_TOPIC = '/vizzy/left/camera_info'
-GAZE_STATE_TOPIC = '/gaze/state'
-OUTPUT_TOPIC = '/foveation/image'
-COMPRESSED_TOPIC = '/foveation/image/compressed'
-DETECTIONS_TOPIC = '/foveation/detections'
-GAZE_COMMAND_TOPIC = '/gaze/command'
+# Relative names: the graph remaps the generic inputs (image_raw:=vizzy/left/image_raw, ...) and
+# the node's namespace places everything; logs print the resolved names.
+INPUT_TOPIC = 'image_raw'
+CAMERA_INFO_TOPIC = 'camera_info'
+GAZE_STATE_TOPIC = 'gaze/state'
+OUTPUT_TOPIC = '~/image'
+COMPRESSED_TOPIC = '~/image/compressed'
+DETECTIONS_TOPIC = '~/detections'
+GAZE_COMMAND_TOPIC = 'gaze/command'
 GAZE_SOURCE = 'foveation'
 GAZE_PRIORITY = 30          # saccades: above stereo_ses (20) and mot_planner (10)
 DEFAULT_MODEL = 'package://foveation_node/models/foveation_cnn.pt'
@@ -85,54 +91,64 @@ BANDWIDTH_LOG_PERIOD_S = 10.0
 WARN_PERIOD_S = 5.0
 MAX_LEVELS = 10
 
-# (name, default, description): the node declares exactly these.
-PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('levels', DEFAULT_LEVELS,
-     f'Number of Laplacian pyramid levels K, in [1, {MAX_LEVELS}] (the image needs at least '
-     '2^K px a side).'),
-    ('f0', DEFAULT_F0, 'Fovea size f_0 [px] (level-k kernel size f_k = 2^k f_0), in (0, 1e5].'),
-    ('sigma_1', PYRAMID_SIGMA_1,
-     f'Gaussian sigma of pyramid level 1 [px], in [{PYRAMID_SIGMA_1:.4f}, 64] (the subsampled '
-     'pyramid cannot realise less).'),
-    ('fixation_u', -1.0, 'Fixation column [px]; negative: the image centre.'),
-    ('fixation_v', -1.0, 'Fixation row [px]; negative: the image centre.'),
-    ('follow_gaze', False,
-     f'Fixate the principal point of {CAMERA_INFO_TOPIC} (where the gaze fixation point of '
-     f'{GAZE_STATE_TOPIC} projects) instead of fixation_u/v.'),
-    ('suppress_during_saccades', True,
-     f'Drop frames while {GAZE_STATE_TOPIC} says in_saccade (saccadic suppression).'),
-    ('jpeg_quality', 90, f'JPEG quality of {COMPRESSED_TOPIC}, in [1, 100].'),
-    ('max_width', 4096, 'Widest accepted input image [px], in [1, 16384]; wider are dropped.'),
-    ('max_height', 4096, 'Tallest accepted input image [px], in [1, 16384]; taller are dropped.'),
-    ('model_path', DEFAULT_MODEL,
-     'TorchScript classifier (preprocessing from the .json beside it, else ImageNet 227x227); '
-     'package://<pkg>/<path> is inside an installed package; empty: no recognition.'),
-    ('labels_path', DEFAULT_LABELS, 'Class labels of model_path, one per line.'),
-    ('saliency_threshold', DEFAULT_THRESHOLD,
-     'Saliency mask threshold th (fraction of the map maximum), in (0, 1].'),
-    ('top_k', DEFAULT_TOP_K, 'Classes localised per pass (top-k), in [1, 100].'),
-    ('recognition_rate_hz', 2.0,
-     'Most recognitions (two passes) started per second, in (0, 100]; the newest frame wins.'),
-    ('recognition_threads', 1, 'Torch CPU threads for recognition, in [1, 64].'),
-    ('saccades_enabled', True,
-     f'Send saccades to the best detected object on {GAZE_COMMAND_TOPIC} (priority '
-     f'{GAZE_PRIORITY}).'),
-    ('saccade_hold_time_s', 1.0, 'hold_time of the saccade GazeCommands [s], in [0, 60].'),
-    ('saccade_min_interval_s', 2.0, 'Least time between two saccades [s], in [0, 600].'),
-    ('saccade_distance_m', 1.0,
-     'Distance along the pixel ray of the fixation point sent [m], in [0.1, 20].'),
-    ('saccade_min_score', 0.3, 'Least class probability worth a saccade, in [0, 1].'),
-    ('saccade_min_offset_px', 20.0,
-     'No saccade to a box centre this near the principal point [px], in [0, 10000].'),
+# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
+PARAMETERS: tuple[Param, ...] = (
+    Param('levels', DEFAULT_LEVELS,
+          f'Number of Laplacian pyramid levels K, in [1, {MAX_LEVELS}] (the image needs at '
+          'least 2^K px a side).', f'[1, {MAX_LEVELS}]'),
+    Param('f0', DEFAULT_F0,
+          'Fovea size f_0 [px] (level-k kernel size f_k = 2^k f_0), in (0, 1e5].', '(0, 1e5]'),
+    Param('sigma_1', PYRAMID_SIGMA_1,
+          f'Gaussian sigma of pyramid level 1 [px], in [{PYRAMID_SIGMA_1:.4f}, 64] (the '
+          'subsampled pyramid cannot realise less).', f'[{PYRAMID_SIGMA_1!r}, 64]',
+          constraints='the lower bound is exact (no 1e-6 edge tolerance)'),
+    Param('fixation_u', -1.0, 'Fixation column [px]; negative: the image centre.',
+          constraints='finite'),
+    Param('fixation_v', -1.0, 'Fixation row [px]; negative: the image centre.',
+          constraints='finite'),
+    Param('follow_gaze', False,
+          f'Fixate the principal point of {CAMERA_INFO_TOPIC} (where the gaze fixation point of '
+          f'{GAZE_STATE_TOPIC} projects) instead of fixation_u/v.'),
+    Param('suppress_during_saccades', True,
+          f'Drop frames while {GAZE_STATE_TOPIC} says in_saccade (saccadic suppression).'),
+    Param('jpeg_quality', 90, f'JPEG quality of {COMPRESSED_TOPIC}, in [1, 100].', '[1, 100]'),
+    Param('max_width', 4096, 'Widest accepted input image [px], in [1, 16384]; wider are '
+          'dropped.', '[1, 16384]'),
+    Param('max_height', 4096, 'Tallest accepted input image [px], in [1, 16384]; taller are '
+          'dropped.', '[1, 16384]'),
+    Param('model_path', DEFAULT_MODEL,
+          'TorchScript classifier (preprocessing from the .json beside it, else ImageNet '
+          '227x227); package://<pkg>/<path> is inside an installed package; empty: no '
+          'recognition.'),
+    Param('labels_path', DEFAULT_LABELS, 'Class labels of model_path, one per line.'),
+    Param('saliency_threshold', DEFAULT_THRESHOLD,
+          'Saliency mask threshold th (fraction of the map maximum), in (0, 1].', '(0, 1]'),
+    Param('top_k', DEFAULT_TOP_K, 'Classes localised per pass (top-k), in [1, 100].',
+          '[1, 100]'),
+    Param('recognition_rate_hz', 2.0,
+          'Most recognitions (two passes) started per second, in (0, 100]; the newest frame '
+          'wins.', '(0, 100]'),
+    Param('recognition_threads', 1, 'Torch CPU threads for recognition, in [1, 64].',
+          '[1, 64]'),
+    Param('saccades_enabled', True,
+          f'Send saccades to the best detected object on {GAZE_COMMAND_TOPIC} (priority '
+          f'{GAZE_PRIORITY}).'),
+    Param('saccade_hold_time_s', 1.0, 'hold_time of the saccade GazeCommands [s], in [0, 60].',
+          '[0, 60]'),
+    Param('saccade_min_interval_s', 2.0, 'Least time between two saccades [s], in [0, 600].',
+          '[0, 600]'),
+    Param('saccade_distance_m', 1.0,
+          'Distance along the pixel ray of the fixation point sent [m], in [0.1, 20].',
+          '[0.1, 20]'),
+    Param('saccade_min_score', 0.3, 'Least class probability worth a saccade, in [0, 1].',
+          '[0, 1]'),
+    Param('saccade_min_offset_px', 20.0,
+          'No saccade to a box centre this near the principal point [px], in [0, 10000].',
+          '[0, 10000]'),
 )
 # Parameters whose change needs a new Foveator.
 FOVEATOR_PARAMETERS = ('levels', 'f0', 'sigma_1')
 MODEL_PARAMETERS = ('model_path', 'labels_path', 'recognition_threads')
-# (name, low, high, low inclusive) of the numeric parameters added with recognition
-RANGES = {'saliency_threshold': (0.0, 1.0, False), 'recognition_rate_hz': (0.0, 100.0, False),
-          'saccade_hold_time_s': (0.0, 60.0, True), 'saccade_min_interval_s': (0.0, 600.0, True),
-          'saccade_distance_m': (0.1, 20.0, True), 'saccade_min_score': (0.0, 1.0, True),
-          'saccade_min_offset_px': (0.0, 10000.0, True)}
 
 
 def resolve_path(path: str) -> Path:
@@ -146,42 +162,15 @@ def resolve_path(path: str) -> Path:
     return Path(path).expanduser()
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is."""
-    if name in ('follow_gaze', 'suppress_during_saccades', 'saccades_enabled'):
-        return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
-    if name in ('model_path', 'labels_path'):
-        return None if isinstance(value, str) else f'{name} must be a string, got {value!r}'
-    if name in ('top_k', 'recognition_threads'):
-        high = 100 if name == 'top_k' else 64
-        if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= high:
-            return f'{name} must be an integer in [1, {high}], got {value!r}'
-        return None
-    if not _is_number(value):
-        return f'{name} must be a number, got {value!r}'
-    if name in ('max_width', 'max_height') and not 1 <= value <= 16384:
-        return f'{name} must be in [1, 16384] px, got {value}'
-    if name == 'levels' and not 1 <= value <= MAX_LEVELS:
-        return f'levels must be in [1, {MAX_LEVELS}], got {value}'
-    if name == 'f0' and not (math.isfinite(value) and 0.0 < value <= 1e5):
-        return f'f0 must be in (0, 1e5] px, got {value}'
-    if name == 'sigma_1' and not (math.isfinite(value)
-                                  and PYRAMID_SIGMA_1 - 1e-9 <= value <= 64.0):
-        return (f'sigma_1 must be in [{PYRAMID_SIGMA_1:.4f}, 64] px (a subsampled pyramid '
+    """Why value is not acceptable for parameter name, or None if it is: the rules the table's
+    ranges cannot express (types and ranges are the descriptors', see PARAMETERS)."""
+    if name == 'sigma_1' and value < PYRAMID_SIGMA_1 - 1e-9:
+        # the Foveator's own floor, without the range's 1e-6 relative edge tolerance
+        return (f'sigma_1 must be at least {PYRAMID_SIGMA_1:.4f} px (a subsampled pyramid '
                 f'realises no less), got {value}')
     if name in ('fixation_u', 'fixation_v') and not math.isfinite(value):
         return f'{name} must be finite, got {value}'
-    if name == 'jpeg_quality' and not 1 <= value <= 100:
-        return f'jpeg_quality must be in [1, 100], got {value}'
-    if name in RANGES:
-        low, high, closed = RANGES[name]
-        inside = (low <= value if closed else low < value) and value <= high
-        if not (math.isfinite(value) and inside):
-            return f'{name} must be in {"[" if closed else "("}{low:g}, {high:g}], got {value}'
     return None
 
 
@@ -238,20 +227,27 @@ class FoveationNode(Node):
         self._pub = self.create_publisher(Image, OUTPUT_TOPIC, qos_profile_sensor_data)
         self._jpeg_pub = self.create_publisher(CompressedImage, COMPRESSED_TOPIC,
                                                qos_profile_sensor_data)
-        self.create_subscription(
-            Image, INPUT_TOPIC, guarded(self, f'{INPUT_TOPIC}: failed on an image', self._on_image),
+        # resolved names, for log lines
+        self._image_topic = self.resolve_topic_name(INPUT_TOPIC)
+        self._info_topic = self.resolve_topic_name(CAMERA_INFO_TOPIC)
+        gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        self._image_sub = self.create_subscription(
+            Image, INPUT_TOPIC,
+            guarded(self, f'{self._image_topic}: failed on an image', self._on_image),
             qos_profile_sensor_data)
-        self.create_subscription(
+        self._gaze_state_sub = self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
-            guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
-        self.create_subscription(
+            guarded(self, f'{gaze_state_topic}: failed on a state', self._on_gaze_state), 10)
+        self._info_sub = self.create_subscription(
             CameraInfo, CAMERA_INFO_TOPIC,
-            guarded(self, f'{CAMERA_INFO_TOPIC}: failed on a camera_info', self._on_camera_info),
+            guarded(self, f'{self._info_topic}: failed on a camera_info', self._on_camera_info),
             qos_profile_sensor_data)
         p = self._p
         self.get_logger().info(
-            f'foveating {"/".join(ENCODINGS)} images from {INPUT_TOPIC} onto {OUTPUT_TOPIC} and '
-            f'{COMPRESSED_TOPIC}: {p["levels"]} levels, f0 {p["f0"]:g} px, sigma_1 '
+            f'foveating {"/".join(ENCODINGS)} images from {self._image_sub.topic_name} (camera '
+            f'info {self._info_sub.topic_name}, gaze {self._gaze_state_sub.topic_name}) onto '
+            f'{self._pub.topic_name} and {self._jpeg_pub.topic_name}: {p["levels"]} levels, '
+            f'f0 {p["f0"]:g} px, sigma_1 '
             f'{p["sigma_1"]:.4g} px, JPEG quality {p["jpeg_quality"]}')
 
         # recognition (Fig. 2.5) in a worker thread; saccades on /gaze/command
@@ -273,7 +269,9 @@ class FoveationNode(Node):
         self._worker = LatestWorker('foveation_recognition', lambda job: recognise(*job))
 
     def destroy_node(self) -> Any:
-        self._worker.close()
+        worker = getattr(self, '_worker', None)  # None: __init__ failed before it started
+        if worker is not None:
+            worker.close()
         return super().destroy_node()
 
     # --- inputs ---------------------------------------------------------------------------------
@@ -304,8 +302,8 @@ class FoveationNode(Node):
             f'recognising {classifier.num_classes} classes ({", ".join(classifier.labels[:8])}'
             f'{", ..." if classifier.num_classes > 8 else ""}) with {model} at {w}x{h}, top-'
             f'{self._p["top_k"]}, th {self._p["saliency_threshold"]:g}, at most '
-            f'{self._p["recognition_rate_hz"]:g} Hz; detections on {DETECTIONS_TOPIC}'
-            f'{", saccades on " + GAZE_COMMAND_TOPIC if self._p["saccades_enabled"] else ""}')
+            f'{self._p["recognition_rate_hz"]:g} Hz; detections on {self._det_pub.topic_name}'
+            f'{", saccades on " + self._gaze_pub.topic_name if self._p["saccades_enabled"] else ""}')
 
     def _on_gaze_state(self, msg: Any) -> None:
         in_saccade = bool(msg.in_saccade)
@@ -345,7 +343,7 @@ class FoveationNode(Node):
             return
         problem = image_problem(msg, self._p['max_width'], self._p['max_height'])
         if problem:
-            self._warn('image', f'{INPUT_TOPIC}: dropped image: {problem}')
+            self._warn('image', f'{self._image_topic}: dropped image: {problem}')
             return
         image = image_to_numpy(msg)
         height, width = image.shape[:2]
@@ -353,7 +351,7 @@ class FoveationNode(Node):
             fixation = self._fixation(width, height)
             foveator = self._get_foveator(width, height)
         except ValueError as exc:
-            self._warn('setup', f'{INPUT_TOPIC}: dropped image: {exc}')
+            self._warn('setup', f'{self._image_topic}: dropped image: {exc}')
             return
         out = foveator.foveate(image, fixation)
         self._pub.publish(numpy_to_image(out, msg.encoding, header=msg.header))
@@ -410,7 +408,8 @@ class FoveationNode(Node):
                           self._p['saliency_threshold'])
         self.last_recognition_ms = 1000.0 * (time.perf_counter() - t0)
         for detections in (result.first, result.second):
-            self._det_pub.publish(self._detection_array(msg.header, fixation, detections))
+            publish_from_thread(self, self._det_pub,
+                                self._detection_array(msg.header, fixation, detections))
         self.recognitions += 1
         self.last_result = result
         self._maybe_saccade(result.second, msg.header.frame_id, epoch, width, height)
@@ -443,11 +442,11 @@ class FoveationNode(Node):
             return
         k = self._camera_k
         if k is None or self._camera_size != (width, height):
-            self._warn('camera_info', f'no saccade: no {CAMERA_INFO_TOPIC} for {width}x{height} '
+            self._warn('camera_info', f'no saccade: no {self._info_topic} for {width}x{height} '
                        f'images yet (have {self._camera_size})')
             return
         if not frame_id:
-            self._warn('frame', f'no saccade: the image from {INPUT_TOPIC} has no frame_id')
+            self._warn('frame', f'no saccade: the image from {self._image_topic} has no frame_id')
             return
         target = saccade_target(detections, (k[2], k[5]), p['saccade_min_score'],
                                 p['saccade_min_offset_px'])
@@ -461,7 +460,7 @@ class FoveationNode(Node):
         cmd.header.stamp = self.get_clock().now().to_msg()
         cmd.header.frame_id = frame_id
         cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = x, y, z
-        self._gaze_pub.publish(cmd)
+        publish_from_thread(self, self._gaze_pub, cmd)
         self._last_saccade = now
         self.saccades_sent += 1
         self.get_logger().info(

@@ -8,7 +8,8 @@ import pytest
 
 from foveation_node import node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
+from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
+                                   parameter_refusals, startup_problem)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'foveation.yaml'
 
@@ -39,23 +40,33 @@ def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
 
 
 def test_parameter_checks() -> None:
-    check = node.check_parameter
-    assert check('levels', 0) and check('levels', 11) and check('levels', 5) is None
-    assert 'sigma_1' in check('sigma_1', 1.0)          # below the pyramid's floor
-    assert check('sigma_1', node.PYRAMID_SIGMA_1) is None
-    assert check('f0', 0.0) and check('f0', float('nan')) and check('f0', 25.0) is None
-    assert check('jpeg_quality', 0) and check('jpeg_quality', 101)
-    assert check('jpeg_quality', 1) is None
-    assert check('fixation_u', float('inf')) and check('fixation_u', -1.0) is None
-    assert check('follow_gaze', 1) and check('follow_gaze', True) is None
-    # recognition and saccades
-    assert check('saliency_threshold', 0.0) and check('saliency_threshold', 1.01)
-    assert check('saliency_threshold', 1.0) is None
-    assert check('top_k', 0) and check('top_k', 2.0) and check('top_k', 5) is None
-    assert check('recognition_rate_hz', 0.0) and check('recognition_rate_hz', 0.5) is None
-    assert check('model_path', 3) and check('model_path', '') is None
-    assert check('saccade_distance_m', 0.05) and check('saccade_min_score', float('nan'))
-    assert check('saccades_enabled', 'yes') and check('saccade_hold_time_s', 0.0) is None
+    with parameter_refusals(node.PARAMETERS, node.check_parameter) as refused:
+        assert refused('levels', 0) and refused('levels', 11) and refused('levels', 5) is None
+        assert 'sigma_1' in refused('sigma_1', 1.0)          # below the pyramid's floor
+        assert refused('sigma_1', node.PYRAMID_SIGMA_1 * (1 - 5e-7))   # exact, unlike a range
+        assert refused('sigma_1', node.PYRAMID_SIGMA_1) is None
+        assert refused('f0', 0.0) and refused('f0', float('nan')) and refused('f0', 25.0) is None
+        assert refused('jpeg_quality', 0) and refused('jpeg_quality', 101)
+        assert refused('jpeg_quality', 1) is None
+        assert refused('fixation_u', float('inf')) and refused('fixation_u', -1.0) is None
+        assert refused('follow_gaze', 1) and refused('follow_gaze', True) is None
+        # recognition and saccades
+        assert refused('saliency_threshold', 0.0) and refused('saliency_threshold', 1.01)
+        assert refused('saliency_threshold', 1.0) is None
+        assert refused('top_k', 0) and refused('top_k', 2.0) and refused('top_k', 5) is None
+        assert refused('recognition_rate_hz', 0.0) and refused('recognition_rate_hz', 0.5) is None
+        assert refused('model_path', 3) and refused('model_path', '') is None
+        assert refused('saccade_distance_m', 0.05) and refused('saccade_min_score', float('nan'))
+        assert refused('saccades_enabled', 'yes') and refused('saccade_hold_time_s', 0.0) is None
+
+
+def test_bad_start_up_values_are_one_line_naming_node_parameter_and_rule() -> None:
+    assert startup_problem(node.PARAMETERS, node.check_parameter, levels=-3) == (
+        "parameter_table: parameter 'levels' = -3: out of range [1, 10]")
+    assert startup_problem(node.PARAMETERS, node.check_parameter, levels='abc') == (
+        "parameter_table: parameter 'levels' = 'abc': expected integer, got string")
+    assert startup_problem(node.PARAMETERS, node.check_parameter, f0=0.0) == (
+        "parameter_table: parameter 'f0' = 0.0: f0 must be in (0, 100000], got 0.0")
 
 
 def test_package_paths_resolve_to_the_packaged_model() -> None:

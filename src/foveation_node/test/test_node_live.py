@@ -15,7 +15,8 @@ import pytest
 from foveation_node import node as fov_node
 from foveation_node.core.synthetic import white_noise
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
+from vizzy_runtime.ros import (
+    Context, Node, Parameter, message, qos_profile_sensor_data, qos_profile_system_default)
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -30,25 +31,27 @@ F0 = 8.0
 
 
 class Camera(Node):
-    """Publishes images and gaze states; keeps what the foveation node publishes."""
+    """Publishes images and gaze states (as a driver: the default reliable QoS); keeps what the
+    foveation node publishes. On the node's resolved topic names."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, foveation: Any) -> None:
         super().__init__('fake_camera', context=context, start_parameter_services=False)
         self.images: list[Any] = []
         self.jpegs: list[Any] = []
-        self.image_pub = self.create_publisher(Image, fov_node.INPUT_TOPIC, qos_profile_sensor_data)
-        self.gaze_pub = self.create_publisher(GazeState, fov_node.GAZE_STATE_TOPIC, 10)
-        self.create_subscription(Image, fov_node.OUTPUT_TOPIC, self.images.append,
+        self.image_pub = self.create_publisher(Image, foveation._image_sub.topic_name,
+                                               qos_profile_system_default)
+        self.gaze_pub = self.create_publisher(GazeState, foveation._gaze_state_sub.topic_name, 10)
+        self.create_subscription(Image, foveation._pub.topic_name, self.images.append,
                                  qos_profile_sensor_data)
-        self.create_subscription(CompressedImage, fov_node.COMPRESSED_TOPIC, self.jpegs.append,
-                                 qos_profile_sensor_data)
+        self.create_subscription(CompressedImage, foveation._jpeg_pub.topic_name,
+                                 self.jpegs.append, qos_profile_sensor_data)
 
 
 @pytest.fixture
 def graph(context):
-    camera = Camera(context)
     foveation = fov_node.FoveationNode(
         context=context, parameter_overrides=[Parameter('f0', value=F0)])
+    camera = Camera(context, foveation)
     with spinning(context, [camera, foveation],
                   lambda: camera.image_pub.get_subscription_count() > 0
                   and camera.gaze_pub.get_subscription_count() > 0

@@ -15,7 +15,7 @@ import pytest
 
 from foveation_node import node as fov_node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_system_default
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -34,19 +34,22 @@ FRAME = 'left_camera_optical_frame'
 
 
 class Camera(Node):
-    """Publishes images, camera_info and gaze states; keeps detections and gaze commands."""
+    """Publishes images, camera_info and gaze states (as a driver: the default reliable QoS);
+    keeps detections and gaze commands. On the foveation node's resolved topic names."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, foveation: Any) -> None:
         super().__init__('fake_camera', context=context, start_parameter_services=False)
         self.detections: list[Any] = []
         self.commands: list[Any] = []
-        self.image_pub = self.create_publisher(Image, fov_node.INPUT_TOPIC, qos_profile_sensor_data)
-        self.info_pub = self.create_publisher(CameraInfo, fov_node.CAMERA_INFO_TOPIC,
-                                              qos_profile_sensor_data)
-        self.gaze_pub = self.create_publisher(GazeState, fov_node.GAZE_STATE_TOPIC, 10)
-        self.create_subscription(FoveatedDetectionArray, fov_node.DETECTIONS_TOPIC,
+        self.image_pub = self.create_publisher(Image, foveation._image_sub.topic_name,
+                                               qos_profile_system_default)
+        self.info_pub = self.create_publisher(CameraInfo, foveation._info_sub.topic_name,
+                                              qos_profile_system_default)
+        self.gaze_pub = self.create_publisher(GazeState, foveation._gaze_state_sub.topic_name, 10)
+        self.create_subscription(FoveatedDetectionArray, foveation._det_pub.topic_name,
                                  self.detections.append, 10)
-        self.create_subscription(GazeCommand, fov_node.GAZE_COMMAND_TOPIC, self.commands.append, 10)
+        self.create_subscription(GazeCommand, foveation._gaze_pub.topic_name,
+                                 self.commands.append, 10)
 
 
 def _camera_info() -> Any:
@@ -69,11 +72,11 @@ def _image_msg() -> Any:
 @pytest.fixture
 def graph(context, stub_model):
     model, labels = stub_model
-    camera = Camera(context)
     foveation = fov_node.FoveationNode(context=context, parameter_overrides=[
         Parameter('model_path', value=str(model)), Parameter('labels_path', value=str(labels)),
         Parameter('f0', value=30.0), Parameter('recognition_rate_hz', value=50.0),
         Parameter('top_k', value=3), Parameter('saccade_min_interval_s', value=0.0)])
+    camera = Camera(context, foveation)
     with spinning(context, [camera, foveation],
                   lambda: camera.image_pub.get_subscription_count() > 0
                   and camera.info_pub.get_subscription_count() > 0

@@ -1,5 +1,8 @@
 """The `mot_planner` node (thesis chapter 5): multiple object tracking with an attention budget.
 
+Topic names are relative (in: `image_raw`, `camera_info`, `gaze/state`, `tf`); the graph remaps
+the inputs to the left camera's, so below are the resolved defaults.
+
 Subscribes /vizzy/left/image_raw (sensor data QoS, rgb8 or bgr8) and /vizzy/left/camera_info
 (intrinsics for the gaze ray and ego-motion), /gaze/state (saccades) and /tf, /tf_static (the
 camera's pose, for ego-motion and world-frame gaze). Each image goes through
@@ -70,7 +73,7 @@ from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.regions import constraint_areas
 from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
-from vizzy_runtime.node_tools import declare_parameters, guarded, main_for
+from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 
@@ -83,13 +86,15 @@ AttentionRegions = message('active_vision_msgs/msg/AttentionRegions')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 
-IMAGE_TOPIC = '/vizzy/left/image_raw'
-CAMERA_INFO_TOPIC = '/vizzy/left/camera_info'
-GAZE_STATE_TOPIC = '/gaze/state'
-TRACKS_TOPIC = '/mot/tracks'
-ATTENTION_TOPIC = '/mot/attention'
-OVERLAY_TOPIC = '/mot/overlay'
-GAZE_COMMAND_TOPIC = '/gaze/command'
+# Relative names: the graph remaps the generic inputs (image_raw:=vizzy/left/image_raw, ...) and
+# the node's namespace places everything; logs print the resolved names.
+IMAGE_TOPIC = 'image_raw'
+CAMERA_INFO_TOPIC = 'camera_info'
+GAZE_STATE_TOPIC = 'gaze/state'
+TRACKS_TOPIC = 'mot/tracks'
+ATTENTION_TOPIC = 'mot/attention'
+OVERLAY_TOPIC = 'mot/overlay'
+GAZE_COMMAND_TOPIC = 'gaze/command'
 SOURCE = 'mot_planner'
 ENCODINGS = ('rgb8', 'bgr8')
 NOMINAL_FPS = 30.0
@@ -100,91 +105,72 @@ LABEL_PERSON = 'person'
 LABEL_IMPLAUSIBLE = 'person_implausible'     # a person box that does not stand on the floor
 WARN_PERIOD_S = 5.0
 
-# (name, default, description): the node declares exactly these.
-PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('k_max', 3, 'K_max: most search regions processed per frame (section 5.3.4), in [1, 20].'),
-    ('s_max', 0.1,
-     'S_max: largest fraction of the image area processed per frame (section 5.3.4), in (0, 1].'),
-    ('alpha_c', 1.0, 'Search-region width in centre stds (Eq. 5.18), in [0, 10].'),
-    ('alpha_s', 1.0, 'Search-region width in scale stds (Eq. 5.19), in [0, 10].'),
-    ('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in (0, 1000].'),
-    ('full_frame_period', 30,
-     'A full-frame detection (new tracks are born) every this many frames, in [1, 100000].'),
-    ('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in [-10, 10].'),
-    ('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].'),
-    ('scale', 1.05, 'HOG pyramid scale step, in (1, 2].'),
-    ('publish_overlay', True, f'Publish the overlay image on {OVERLAY_TOPIC}.'),
-    ('publish_gaze', True,
-     f'Send pursuit commands on {GAZE_COMMAND_TOPIC} to keep the tracks in view.'),
-    ('gaze_priority', 10,
-     'Priority of the gaze commands (below the other nodes\' saccades), in [0, 1000].'),
-    ('gaze_depth_m', 3.0, 'Nominal depth of the fixation point along the group\'s ray [m], '
-     'in (0.1, 100].'),
-    ('gaze_rate_hz', 2.0, 'Most gaze commands per second, in (0, 30].'),
-    ('gaze_min_hits', 3, 'Only tracks detected at least this many times steer the gaze, in '
-     '[1, 1000].'),
-    ('gaze_min_age', 5, 'Only tracks at least this many frames old steer the gaze, in '
-     '[0, 100000].'),
-    ('person_check', True,
-     'Only tracks whose box stands on the floor at a person\'s height steer the gaze (needs '
-     'camera_info and the camera\'s pose in world_frame).'),
-    ('person_height_m', [1.3, 2.5],
-     'Range [min, max] of the height [m] a box standing on the floor must imply, 0 < min < max '
-     '<= 10.'),
-    ('floor_z_m', FLOOR_Z_M, 'Height of the floor in world_frame [m] (base_link, the waist, '
-     'stands WAIST_HEIGHT above it), in [-100, 100].'),
-    ('person_check_frames', 5, 'The implied height must be in range on each of a track\'s last '
-     'this many frames, in [1, 1000].'),
-    ('person_height_ratio', 1.3, 'Largest max/min of a track\'s implied heights over those '
-     'frames (a person\'s stays put; a box above the floor sweeps as the head moves), in '
-     '[1, 10].'),
-    ('ego_motion', True, 'Compensate the camera\'s rotation between images (from /tf).'),
-    ('world_frame', 'base_link', 'A frame that does not rotate with the head, for ego-motion.'),
+# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
+PARAMETERS: tuple[Param, ...] = (
+    Param('k_max', 3, 'K_max: most search regions processed per frame (section 5.3.4), in '
+          '[1, 20].', '[1, 20]'),
+    Param('s_max', 0.1, 'S_max: largest fraction of the image area processed per frame '
+          '(section 5.3.4), in (0, 1].', '(0, 1]'),
+    Param('alpha_c', 1.0, 'Search-region width in centre stds (Eq. 5.18), in [0, 10].',
+          '[0, 10]'),
+    Param('alpha_s', 1.0, 'Search-region width in scale stds (Eq. 5.19), in [0, 10].',
+          '[0, 10]'),
+    Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in (0, 1000].',
+          '(0, 1000]'),
+    Param('full_frame_period', 30, 'A full-frame detection (new tracks are born) every this '
+          'many frames, in [1, 100000].', '[1, 100000]'),
+    Param('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in '
+          '[-10, 10].', '[-10, 10]'),
+    # step 8 from 8: the multiples of 8 (the HOG block stride)
+    Param('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].', '[8, 64]',
+          step=8),
+    Param('scale', 1.05, 'HOG pyramid scale step, in (1, 2].', '(1, 2]'),
+    Param('publish_overlay', True, f'Publish the overlay image on {OVERLAY_TOPIC}.'),
+    Param('publish_gaze', True,
+          f'Send pursuit commands on {GAZE_COMMAND_TOPIC} to keep the tracks in view.'),
+    Param('gaze_priority', 10, 'Priority of the gaze commands (below the other nodes\' '
+          'saccades), in [0, 1000].', '[0, 1000]'),
+    Param('gaze_depth_m', 3.0, 'Nominal depth of the fixation point along the group\'s ray '
+          '[m], in (0.1, 100].', '(0.1, 100]'),
+    Param('gaze_rate_hz', 2.0, 'Most gaze commands per second, in (0, 30].', '(0, 30]'),
+    Param('gaze_min_hits', 3, 'Only tracks detected at least this many times steer the gaze, '
+          'in [1, 1000].', '[1, 1000]'),
+    Param('gaze_min_age', 5, 'Only tracks at least this many frames old steer the gaze, in '
+          '[0, 100000].', '[0, 100000]'),
+    Param('person_check', True,
+          'Only tracks whose box stands on the floor at a person\'s height steer the gaze '
+          '(needs camera_info and the camera\'s pose in world_frame).'),
+    Param('person_height_m', [1.3, 2.5],
+          'Range [min, max] of the height [m] a box standing on the floor must imply, 0 < min '
+          '< max <= 10.', constraints='[min, max] with 0 < min < max <= 10'),
+    Param('floor_z_m', FLOOR_Z_M, 'Height of the floor in world_frame [m] (base_link, the '
+          'waist, stands WAIST_HEIGHT above it), in [-100, 100].', '[-100, 100]'),
+    Param('person_check_frames', 5, 'The implied height must be in range on each of a '
+          'track\'s last this many frames, in [1, 1000].', '[1, 1000]'),
+    Param('person_height_ratio', 1.3, 'Largest max/min of a track\'s implied heights over '
+          'those frames (a person\'s stays put; a box above the floor sweeps as the head '
+          'moves), in [1, 10].', '[1, 10]'),
+    Param('ego_motion', True, 'Compensate the camera\'s rotation between images (from /tf).'),
+    Param('world_frame', 'base_link', 'A frame that does not rotate with the head, for '
+          'ego-motion.', constraints='a frame id, not empty'),
 )
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
 DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
 PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
-_BOOLS = ('publish_overlay', 'publish_gaze', 'ego_motion', 'person_check')
-_INTS = ('k_max', 'full_frame_period', 'win_stride', 'gaze_priority', 'gaze_min_hits',
-         'gaze_min_age', 'person_check_frames')
-_RANGES: dict[str, tuple[float, float, bool]] = {   # name: (lo, hi, lo exclusive)
-    'k_max': (1, 20, False), 's_max': (0.0, 1.0, True), 'alpha_c': (0.0, 10.0, False),
-    'alpha_s': (0.0, 10.0, False), 'budget_ms': (0.0, 1000.0, True),
-    'full_frame_period': (1, 100000, False), 'hit_threshold': (-10.0, 10.0, False),
-    'win_stride': (8, 64, False), 'scale': (1.0, 2.0, True), 'gaze_priority': (0, 1000, False),
-    'gaze_depth_m': (0.1, 100.0, True), 'gaze_rate_hz': (0.0, 30.0, True),
-    'gaze_min_hits': (1, 1000, False), 'gaze_min_age': (0, 100000, False),
-    'floor_z_m': (-100.0, 100.0, False), 'person_check_frames': (1, 1000, False),
-    'person_height_ratio': (1.0, 10.0, False),
-}
 TF_HISTORY_S = 2.0
 
 
 def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is."""
-    if name in _BOOLS:
-        return None if isinstance(value, bool) else f'{name} must be true or false, got {value!r}'
+    """Why value is not acceptable for parameter name, or None if it is: what the table's
+    ranges cannot express (types and ranges are the descriptors', see PARAMETERS)."""
     if name == 'person_height_m':
-        ok = (isinstance(value, (list, tuple)) and len(value) == 2
-              and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                      and math.isfinite(v) for v in value)
-              and 0.0 < value[0] < value[1] <= 10.0)
+        values = [float(v) for v in value]      # a double array (the descriptor's type)
+        ok = (len(values) == 2 and all(math.isfinite(v) for v in values)
+              and 0.0 < values[0] < values[1] <= 10.0)
         return None if ok else f'person_height_m must be [min, max] with 0 < min < max <= 10, ' \
-                               f'got {value!r}'
-    if name == 'world_frame':
-        ok = isinstance(value, str) and value.strip('/') != ''
-        return None if ok else f'world_frame must be a frame id, got {value!r}'
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return f'{name} must be a number, got {value!r}'
-    if name in _INTS and not float(value).is_integer():
-        return f'{name} must be an integer, got {value}'
-    if name in _RANGES:
-        lo, hi, open_lo = _RANGES[name]
-        ok = math.isfinite(value) and (lo < value if open_lo else lo <= value) and value <= hi
-        if not ok:
-            return f'{name} must be in {"(" if open_lo else "["}{lo:g}, {hi:g}], got {value}'
-    if name == 'win_stride' and value % 8:
-        return f'win_stride must be a multiple of 8 (HOG block stride), got {value}'
+                               f'got {values!r}'
+    if name == 'world_frame' and not value.strip('/'):
+        return f'world_frame must be a frame id, got {value!r}'
     return None
 
 
@@ -258,22 +244,30 @@ class MotPlannerNode(Node):
         self._attention_pub = self.create_publisher(AttentionRegions, ATTENTION_TOPIC, 10)
         self._overlay_pub = self.create_publisher(Image, OVERLAY_TOPIC, qos_profile_sensor_data)
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
-        self.create_subscription(
-            Image, IMAGE_TOPIC, guarded(self, f'{IMAGE_TOPIC}: failed on an image', self._on_image),
+        # resolved names, for log lines
+        self._image_topic = self.resolve_topic_name(IMAGE_TOPIC)
+        self._info_topic = self.resolve_topic_name(CAMERA_INFO_TOPIC)
+        gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        self._image_sub = self.create_subscription(
+            Image, IMAGE_TOPIC,
+            guarded(self, f'{self._image_topic}: failed on an image', self._on_image),
             qos_profile_sensor_data)
-        self.create_subscription(
+        self._info_sub = self.create_subscription(
             CameraInfo, CAMERA_INFO_TOPIC,
-            guarded(self, f'{CAMERA_INFO_TOPIC}: failed on a camera_info', self._on_camera_info),
+            guarded(self, f'{self._info_topic}: failed on a camera_info', self._on_camera_info),
             qos_profile_sensor_data)
-        self.create_subscription(
+        self._gaze_state_sub = self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
-            guarded(self, f'{GAZE_STATE_TOPIC}: failed on a state', self._on_gaze_state), 10)
+            guarded(self, f'{gaze_state_topic}: failed on a state', self._on_gaze_state), 10)
         # each /tf message also records the camera's pose at its stamp (ego-motion)
         self._tf_listener = TransformListener(self._tf, self, on_update=self._on_tf)
         p = self._p
         self.get_logger().info(
-            f'tracking people in {IMAGE_TOPIC} onto {TRACKS_TOPIC}, {ATTENTION_TOPIC}'
-            f'{", " + OVERLAY_TOPIC if p["publish_overlay"] else ""}: k_max={p["k_max"]}, '
+            f'tracking people in {self._image_sub.topic_name} (camera info '
+            f'{self._info_sub.topic_name}) onto {self._tracks_pub.topic_name}, '
+            f'{self._attention_pub.topic_name}'
+            f'{", " + self._overlay_pub.topic_name if p["publish_overlay"] else ""}, gaze on '
+            f'{self._gaze_pub.topic_name}: k_max={p["k_max"]}, '
             f's_max={p["s_max"]}, budget {p["budget_ms"]} ms, full frame every '
             f'{p["full_frame_period"]} frames; gaze priority {p["gaze_priority"]}')
 
@@ -356,7 +350,7 @@ class MotPlannerNode(Node):
                                   'tracking without ego-motion compensation until there is one')
             return None, None
         if self._k is None:
-            self._note_once('k', f'no {CAMERA_INFO_TOPIC} yet: tracking without ego-motion '
+            self._note_once('k', f'no {self._info_topic} yet: tracking without ego-motion '
                                  'compensation until it arrives')
             return None, pose
         if self._last_pose is None:
@@ -385,14 +379,14 @@ class MotPlannerNode(Node):
         problem = image_problem(msg)
         if problem:
             self.frames_dropped += 1
-            self._warn('image', f'{IMAGE_TOPIC}: dropped image: {problem}')
+            self._warn('image', f'{self._image_topic}: dropped image: {problem}')
             return
         image = image_to_numpy(msg)
         bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else image
         tracker = self._tracker
         size = (int(image.shape[1]), int(image.shape[0]))
         if tracker.image_size is not None and size != tracker.image_size:
-            self._warn('size', f'{IMAGE_TOPIC}: frame size changed from {tracker.image_size[0]}x'
+            self._warn('size', f'{self._image_topic}: frame size changed from {tracker.image_size[0]}x'
                                f'{tracker.image_size[1]} to {size[0]}x{size[1]}: tracker reset, '
                                f'{len(tracker.tracks)} tracks dropped')
             tracker.reset()
@@ -404,7 +398,7 @@ class MotPlannerNode(Node):
             result = tracker.step(bgr, homography=homography)
         except FrameError as exc:
             self.frames_dropped += 1
-            self._warn('frame', f'{IMAGE_TOPIC}: dropped image: {exc}')
+            self._warn('frame', f'{self._image_topic}: dropped image: {exc}')
             return
         self._last_pose = pose
         self.frames_compensated += homography is not None
@@ -471,7 +465,7 @@ class MotPlannerNode(Node):
         if pose is None and header.frame_id:     # ego-motion off: the pose is still needed
             pose = self._camera_pose(header)
         if pose is None or self._k is None:
-            self._note_once('person', f'no {CAMERA_INFO_TOPIC} or no transform '
+            self._note_once('person', f'no {self._info_topic} or no transform '
                                       f'{self._p["world_frame"]} -> '
                                       f'{header.frame_id or "(no frame_id)"}: person boxes are '
                                       'not checked against the floor until there are')
@@ -564,10 +558,10 @@ class MotPlannerNode(Node):
         if now - self._last_gaze < 1.0 / self._p['gaze_rate_hz']:
             return
         if self._k is None:
-            self._warn('gaze', f'no {CAMERA_INFO_TOPIC} yet: no gaze commands')
+            self._warn('gaze', f'no {self._info_topic} yet: no gaze commands')
             return
         if not header.frame_id:
-            self._warn('gaze', f'{IMAGE_TOPIC}: images have no frame_id: no gaze commands')
+            self._warn('gaze', f'{self._image_topic}: images have no frame_id: no gaze commands')
             return
         boxes = result.boxes[steer]
         centres = boxes[:, :2] + boxes[:, 2:] / 2.0

@@ -6,13 +6,25 @@ import numpy as np
 
 from mot_planner_node import node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
+from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
+                                   parameter_refusals)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'mot_planner.yaml'
 
 
 def test_parameter_table_and_config() -> None:
     check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'mot_planner')
+
+
+def test_parameter_checks() -> None:
+    with parameter_refusals(node.PARAMETERS, node.check_parameter) as refused:
+        assert refused('win_stride', 12) and refused('win_stride', 72) and refused('win_stride', 0)
+        assert refused('win_stride', 16) is None and refused('win_stride', 64) is None
+        assert refused('scale', 1.0) and refused('scale', 1.01) is None
+        assert refused('s_max', 0.0) and refused('s_max', 1.0) is None
+        assert refused('person_height_m', [2.0, 1.0]) and refused('person_height_m', [0.0, 2.0])
+        assert refused('person_height_m', [1.0, 2.0, 3.0]) and refused('world_frame', '')
+        assert refused('k_max', 3.0) and refused('publish_gaze', 1)      # the declared types
 
 
 def test_images_are_checked() -> None:
@@ -36,4 +48,4 @@ def test_floor_default_is_the_kinematics_constant() -> None:
     the simulator's package at run time)."""
     from vizzy_sim_bridge.core.kinematics import WAIST_HEIGHT
     assert node.FLOOR_Z_M == -WAIST_HEIGHT
-    assert dict((n, d) for n, d, _ in node.PARAMETERS)['floor_z_m'] == -WAIST_HEIGHT
+    assert {p.name: p.default for p in node.PARAMETERS}['floor_z_m'] == -WAIST_HEIGHT

@@ -19,7 +19,9 @@ from mot_planner_node import node as mot_node
 from mot_planner_node.core.detector import BoxShrink, Detections
 from mot_planner_node.core.observation import DetectorGeometry
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_sensor_data
+from vizzy_runtime.ros import (
+    Context, Node, Parameter, message, qos_profile_sensor_data, qos_profile_system_default)
+from vizzy_runtime.tf import TF_TOPIC
 from vizzy_runtime.testing import spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -71,33 +73,36 @@ def render(frame: int, width: int = WIDTH, height: int = HEIGHT) -> np.ndarray:
 
 
 class Camera(Node):
-    """Publishes images, camera_info and gaze states; keeps what the mot_planner publishes."""
+    """Publishes images, camera_info (as a driver: the default reliable QoS) and gaze states;
+    keeps what the mot_planner publishes. On the node's resolved topic names."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, mot: Any) -> None:
         super().__init__('fake_camera', context=context, start_parameter_services=False)
         self.tracks: list[Any] = []
         self.attention: list[Any] = []
         self.overlays: list[Any] = []
         self.gaze: list[Any] = []
-        self.image_pub = self.create_publisher(Image, mot_node.IMAGE_TOPIC, qos_profile_sensor_data)
-        self.info_pub = self.create_publisher(CameraInfo, mot_node.CAMERA_INFO_TOPIC,
-                                              qos_profile_sensor_data)
-        self.gaze_pub = self.create_publisher(GazeState, mot_node.GAZE_STATE_TOPIC, 10)
-        self.create_subscription(TrackArray, mot_node.TRACKS_TOPIC, self.tracks.append, 10)
-        self.create_subscription(AttentionRegions, mot_node.ATTENTION_TOPIC,
+        self.tf_topic = mot.resolve_topic_name(TF_TOPIC)
+        self.image_pub = self.create_publisher(Image, mot._image_sub.topic_name,
+                                               qos_profile_system_default)
+        self.info_pub = self.create_publisher(CameraInfo, mot._info_sub.topic_name,
+                                              qos_profile_system_default)
+        self.gaze_pub = self.create_publisher(GazeState, mot._gaze_state_sub.topic_name, 10)
+        self.create_subscription(TrackArray, mot._tracks_pub.topic_name, self.tracks.append, 10)
+        self.create_subscription(AttentionRegions, mot._attention_pub.topic_name,
                                  self.attention.append, 10)
-        self.create_subscription(Image, mot_node.OVERLAY_TOPIC, self.overlays.append,
+        self.create_subscription(Image, mot._overlay_pub.topic_name, self.overlays.append,
                                  qos_profile_sensor_data)
-        self.create_subscription(GazeCommand, mot_node.GAZE_COMMAND_TOPIC, self.gaze.append, 10)
+        self.create_subscription(GazeCommand, mot._gaze_pub.topic_name, self.gaze.append, 10)
 
 
 @pytest.fixture
 def graph(context, monkeypatch):
     monkeypatch.setattr(mot_node, 'DETECTOR_FACTORY', lambda params: BlobDetector())
-    camera = Camera(context)
     mot = mot_node.MotPlannerNode(context=context, parameter_overrides=[
         Parameter('k_max', value=K_MAX), Parameter('s_max', value=0.3),
         Parameter('full_frame_period', value=5), Parameter('gaze_rate_hz', value=30.0)])
+    camera = Camera(context, mot)
     with spinning(context, [camera, mot],
                   lambda: camera.image_pub.get_subscription_count() > 0
                   and camera.info_pub.get_subscription_count() > 0
@@ -276,7 +281,7 @@ def test_ego_motion_from_tf_keeps_tracks_through_a_head_turn(graph, ego_motion) 
     the rotation from /tf the tracks follow; without it they are lost."""
     from mot_planner_node.core.egomotion import rotation_homography, warp_points
     camera, mot, executor = graph
-    tf_pub = camera.create_publisher(TFMessage, '/tf', 10)
+    tf_pub = camera.create_publisher(TFMessage, camera.tf_topic, 10)
     # the blobs are not people standing on a floor (test_gaze_only_on_people_on_the_floor)
     assert all(r.successful for r in mot.set_parameters([
         Parameter('ego_motion', value=ego_motion), Parameter('full_frame_period', value=1000),
@@ -358,7 +363,7 @@ def test_gaze_only_on_people_on_the_floor(graph) -> None:
     head; a larger one just below the horizon (a 'person' 8 m tall, 21 m away) is tracked,
     labelled implausible and drawn grey, and never steers."""
     camera, mot, executor = graph
-    tf_pub = camera.create_publisher(TFMessage, '/tf', 10)
+    tf_pub = camera.create_publisher(TFMessage, camera.tf_topic, 10)
     assert wait_until(lambda: tf_pub.get_subscription_count() > 0, TIMEOUT, spin=executor)
     camera.info_pub.publish(_camera_info())
     assert wait_until(lambda: mot._k is not None, TIMEOUT, spin=executor)

@@ -18,7 +18,8 @@ from stereo_ses_node.core.geometry import vergence_poses
 from stereo_ses_node.core.synthetic import plane_texture, render_plane
 from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
 from vizzy_runtime.ros import (
-    Context, Node, Parameter, message, qos_profile_latched, qos_profile_sensor_data)
+    Context, Node, Parameter, message, qos_profile_latched, qos_profile_system_default)
+from vizzy_runtime.tf import TF_STATIC_TOPIC
 from vizzy_runtime.testing import spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -57,22 +58,25 @@ def _stamped(parent: str, child: str, pose: np.ndarray) -> Any:
 
 
 class Rig(Node):
-    """Publishes the stereo pair, camera_info, tf and gaze states; keeps the node's outputs."""
+    """Publishes the stereo pair, camera_info (as a driver: the default reliable QoS, which the
+    node's reliable inputs need), tf and gaze states; keeps the node's outputs. On the node's
+    resolved topic names."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, ses: Any) -> None:
         super().__init__('fake_rig', context=context, start_parameter_services=False)
         self.points: list[Any] = []
         self.cells: list[Any] = []
         self.gaze: list[Any] = []
-        self.image_pubs = {e: self.create_publisher(Image, ses_node.IMAGE_TOPICS[e],
-                                                    qos_profile_sensor_data) for e in FRAMES}
-        self.info_pubs = {e: self.create_publisher(CameraInfo, ses_node.INFO_TOPICS[e],
-                                                   qos_profile_sensor_data) for e in FRAMES}
-        self.tf_pub = self.create_publisher(TFMessage, '/tf_static', qos_profile_latched)
-        self.state_pub = self.create_publisher(GazeState, ses_node.GAZE_STATE_TOPIC, 10)
-        self.create_subscription(PointCloud2, ses_node.POINTS_TOPIC, self.points.append, 10)
-        self.create_subscription(PointCloud2, ses_node.CELLS_TOPIC, self.cells.append, 10)
-        self.create_subscription(GazeCommand, ses_node.GAZE_COMMAND_TOPIC, self.gaze.append, 10)
+        self.image_pubs = {e: self.create_publisher(Image, ses._image_subs[e].topic_name,
+                                                    qos_profile_system_default) for e in FRAMES}
+        self.info_pubs = {e: self.create_publisher(CameraInfo, ses._info_subs[e].topic_name,
+                                                   qos_profile_system_default) for e in FRAMES}
+        self.tf_pub = self.create_publisher(TFMessage, ses.resolve_topic_name(TF_STATIC_TOPIC),
+                                            qos_profile_latched)
+        self.state_pub = self.create_publisher(GazeState, ses._gaze_state_sub.topic_name, 10)
+        self.create_subscription(PointCloud2, ses._points_pub.topic_name, self.points.append, 10)
+        self.create_subscription(PointCloud2, ses._cells_pub.topic_name, self.cells.append, 10)
+        self.create_subscription(GazeCommand, ses._gaze_pub.topic_name, self.gaze.append, 10)
         tex = plane_texture(512)
         self.images = {e: render_plane(K, POSES[e], W, H, DEPTH, tex, 0.004) for e in FRAMES}
 
@@ -97,12 +101,12 @@ class Rig(Node):
 
 @pytest.fixture
 def graph(context):
-    rig = Rig(context)
     ses = ses_node.StereoSesNode(context=context, parameter_overrides=[
         Parameter('sensor', value='cartesian'), Parameter('n_rf', value=100),
         Parameter('n_cells', value=3000), Parameter('max_rate_hz', value=30.0),
         Parameter('decision_period_s', value=0.1), Parameter('frames_per_fixation', value=1),
         Parameter('cells_rate_hz', value=20.0)])
+    rig = Rig(context, ses)
     with spinning(context, [rig, ses],
                   lambda: all(p.get_subscription_count() > 0 for p in rig.image_pubs.values())
                   and rig.state_pub.get_subscription_count() > 0
@@ -116,7 +120,7 @@ _stamps = iter(range(10_000))
 
 
 def _feed(rig: Rig, ses: Any, executor: Any, left: Any = None, right: Any = None) -> bool:
-    """Publish a pair (again every 0.2 s: sensor data QoS is best effort) until it was handled."""
+    """Publish a pair (again every 0.2 s, in case the worker dropped it) until it was handled."""
     stamp = next(_stamps)
     left = left or rig.image('left', stamp)
     right = right or rig.image('right', stamp)
@@ -138,7 +142,7 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     # no camera_info yet: skipped with a message
     assert _feed(rig, ses, executor)
     assert ses.frames_skipped == 1 and ses.frames_fused == 0
-    assert 'waiting for /vizzy/left/camera_info' in capfd.readouterr().err
+    assert f'waiting for {ses._info_subs["left"].topic_name}' in capfd.readouterr().err
     # no tf yet: skipped
     rig.publish_info()
     assert wait_until(lambda: len(ses._k) == 2, TIMEOUT, spin=executor)

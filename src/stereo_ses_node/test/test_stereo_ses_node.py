@@ -8,29 +8,34 @@ import numpy as np
 from stereo_ses_node import node
 from stereo_ses_node.core.ses import SensoryEgoSphere
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
-from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
+from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
+                                   parameter_refusals)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'stereo_ses.yaml'
 
 
 def test_parameter_table_and_config() -> None:
-    check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'stereo_ses')
-    defaults = {name: default for name, default, _ in node.PARAMETERS}
+    check_parameter_table(node.PARAMETERS, node.check_parameter, CONFIG, 'stereo_ses',
+                          node.check_all)
+    defaults = {p.name: p.default for p in node.PARAMETERS}
     assert node.check_all(defaults) == []
 
 
 def test_parameter_checks() -> None:
-    check = node.check_parameter
-    assert check('ucb_alpha', 0.0) is None and check('ucb_alpha', math.inf) is None
-    assert check('ucb_alpha', -1.0) and check('ucb_alpha', math.nan)
-    assert check('sensor', 'fisheye') and check('acquisition', 'thompson')
-    assert check('bias', 'user') is None and check('bias', 'sideways')
-    assert check('n_rf', 200.5) and check('n_rf', 8)
-    assert check('bias_means', [0.0, 1.0]) and check('bias_variances', [0.5, 0.5, 0.0])
-    assert check('fixation_distance_m', [0.1, 5.0]) and check('fixation_distance_m', [2.0, 1.0])
-    values = {name: default for name, default, _ in node.PARAMETERS}
-    assert node.check_all({**values, 'bias_weights': [0.5, 0.5]})   # means for one component
-    assert check('ut_kappa', -4.0) and check('ut_alpha', 0.0)   # L + lambda must stay > 0
+    with parameter_refusals(node.PARAMETERS, node.check_parameter, node.check_all) as refused:
+        assert refused('ucb_alpha', 0.0) is None and refused('ucb_alpha', math.inf) is None
+        assert refused('ucb_alpha', -1.0) and refused('ucb_alpha', math.nan)
+        assert refused('sensor', 'fisheye') and refused('acquisition', 'thompson')
+        assert refused('bias', 'user') is None and refused('bias', 'sideways')
+        assert refused('n_rf', 200.5) and refused('n_rf', 8)
+        assert refused('bias_means', [0.0, 1.0]) and refused('bias_variances', [0.5, 0.5, 0.0])
+        assert refused('fixation_distance_m', [0.1, 5.0])
+        assert refused('fixation_distance_m', [2.0, 1.0])
+        assert refused('bias_weights', [0.5, 0.5])                  # means for one component
+        assert refused('ut_kappa', -4.0) and refused('ut_alpha', 0.0)   # L + lambda must stay > 0
+        assert refused('ego_frame', '/') and refused('seed', 2 ** 31) and refused('seed', -1)
+    values = {p.name: p.default for p in node.PARAMETERS}
+    assert node.check_all({**values, 'bias_weights': [0.5, 0.5]})
     gmm = node.user_gmm({**values, 'bias_weights': [1.0, 3.0], 'bias_means': [0, 0, 1, 1, 0, 0],
                          'bias_variances': [0.1] * 6})
     assert np.allclose(gmm.weights, [0.25, 0.75]) and np.allclose(gmm.means[1], [1, 0, 0])

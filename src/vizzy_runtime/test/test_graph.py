@@ -84,7 +84,11 @@ pub = talker.create_publisher(S, 'chatter', 10)
 listener = Node('listener_' + suffix, context=ctx, start_parameter_services=False)
 sub = listener.create_subscription(S, '/graph_test/chatter', lambda m: None, 10)
 print(json.dumps({'participant': dds.participant().guid.bytes.hex(), 'talker_writer': pub.guid.hex(),
-                  'listener_reader': sub.guid.hex()}), flush=True)
+                  'listener_reader': sub.guid.hex(),
+                  'talker_events': talker._parameter_event_publisher.guid.hex(),
+                  'listener_events': listener._parameter_event_publisher.guid.hex(),
+                  'talker_rosout': talker._rosout_publisher.guid.hex(),
+                  'listener_rosout': listener._rosout_publisher.guid.hex()}), flush=True)
 for line in sys.stdin:
     if line.strip() == 'destroy talker':
         talker.destroy_node()
@@ -215,13 +219,18 @@ def test_two_processes_announce_their_nodes(context: Context, observer: Observer
         assert child_gid != own_gid
         talker_key, listener_key = ('/graph_test', f'talker_{suffix}'), ('/', f'listener_{suffix}')
 
-        # this process: GID = participant GUID, the node's reader and writer GUIDs
-        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key), ([local_sub.guid], [local_pub.guid]),
-                   'own sample')
+        # this process: GID = participant GUID, the node's reader and writer GUIDs (every node
+        # also writes /rosout and /parameter_events, as rclpy's do, in that order)
+        events = [local._rosout_publisher.guid, local._parameter_event_publisher.guid]
+        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key),
+                   ([local_sub.guid], [*events, local_pub.guid]), 'own sample')
 
         # the child: both nodes, each with the GUIDs of its actual endpoints
-        wait_equal(lambda: observer.nodes(child_gid), {talker_key: ([], [bytes.fromhex(ids['talker_writer'])]),
-                                                       listener_key: ([bytes.fromhex(ids['listener_reader'])], [])},
+        talker_events, listener_events = ([bytes.fromhex(ids[f'{n}_rosout']), bytes.fromhex(ids[f'{n}_events'])]
+                                          for n in ('talker', 'listener'))
+        wait_equal(lambda: observer.nodes(child_gid),
+                   {talker_key: ([], [*talker_events, bytes.fromhex(ids['talker_writer'])]),
+                    listener_key: ([bytes.fromhex(ids['listener_reader'])], listener_events)},
                    'child sample')
 
         # our graph reader sees the other process's nodes (and lists its own from local state)
@@ -230,23 +239,24 @@ def test_two_processes_announce_their_nodes(context: Context, observer: Observer
                  'both processes in node_names_and_namespaces()')
         info = {(n.namespace, n.name): n for n in graph.snapshot()}
         assert info[talker_key].participant_gid == child_gid and not info[talker_key].local
-        assert info[talker_key].writer_gids == (bytes.fromhex(ids['talker_writer']),)
+        assert info[talker_key].writer_gids == (*talker_events, bytes.fromhex(ids['talker_writer']))
         assert info[local_key].local and info[local_key].participant_gid == own_gid
 
         # destroying a node in the child republishes its sample without it
         child.send('destroy talker')
         assert child.read() == {'destroyed': 'talker'}
-        wait_equal(lambda: observer.nodes(child_gid), {listener_key: ([bytes.fromhex(ids['listener_reader'])], [])},
+        wait_equal(lambda: observer.nodes(child_gid),
+                   {listener_key: ([bytes.fromhex(ids['listener_reader'])], listener_events)},
                    'child sample without the talker')
         wait_for(lambda: graph.NodeName(*talker_key) not in graph.node_names_and_namespaces(), 'talker gone')
 
         # destroying an entity here republishes our sample
         local.destroy_publisher(local_pub)
-        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key), ([local_sub.guid], []),
+        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key), ([local_sub.guid], events),
                    'own sample without the publisher')
         local_pub2 = local.create_publisher(String, 'again', 10)
-        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key), ([local_sub.guid], [local_pub2.guid]),
-                   'own sample with the new publisher')
+        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key),
+                   ([local_sub.guid], [*events, local_pub2.guid]), 'own sample with the new publisher')
     finally:
         assert child.close() == 0
 

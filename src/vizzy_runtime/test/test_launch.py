@@ -7,10 +7,12 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 from vizzy_runtime import dds
-from vizzy_runtime.launcher import (LaunchError, Launcher, default_graph_file, find_entry_point,
-                                    load_graph, node_command)
+from vizzy_runtime.launcher import (GRAPH_REMAPS, LaunchError, Launcher, default_graph_file,
+                                    find_entry_point, graph_namespace, load_graph, node_command,
+                                    node_namespace)
 from vizzy_runtime.testing import wait_until
 
 OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
@@ -54,19 +56,46 @@ def test_real_launch_file_reads_the_same_graph():
     source = launch_file.read_text()
     ast.parse(source)
     assert 'graph.yaml' in source and 'launch_ros' in source
+    # a graph-wide namespace argument, with the same /clock, /tf, /tf_static remaps as vizzy launch
+    assert "'namespace'" in source and 'PushROSNamespace(' in source
+    for src, dst in GRAPH_REMAPS:
+        assert f"SetRemap('{src}', '{dst}')" in source
 
 
 def test_commands_carry_names_params_and_remaps():
     graph = load_graph(default_graph_file())
     sim = next(n for n in graph.nodes if n.name == 'sim')
     fov = next(n for n in graph.nodes if n.name == 'foveation')
-    fov.remappings = {'/vizzy/left/image_raw': '/cam/image'}
+    # the graph wires the node's generic input to the left camera, relatively
+    assert 'image_raw:=vizzy/left/image_raw' in node_command(fov, graph.use_sim_time)
+    fov.remappings = {'image_raw': 'cam/image'}
     cmd = node_command(fov, graph.use_sim_time)
     assert cmd[cmd.index('run') + 1:cmd.index('run') + 3] == ['foveation_node', 'foveation']
-    assert '__node:=foveation' in cmd and '/vizzy/left/image_raw:=/cam/image' in cmd
+    assert '__node:=foveation' in cmd and 'image_raw:=cam/image' in cmd
+    assert not any(a.startswith('__ns:=') for a in cmd)      # the root namespace: no __ns
     assert 'use_sim_time:=true' in cmd
     assert 'use_sim_time:=true' not in node_command(sim, graph.use_sim_time)  # the clock's source
     assert any(a.endswith('config/foveation.yaml') for a in cmd)
+
+
+def test_a_namespaced_graph_moves_every_node(tmp_path):
+    graph = load_graph(default_graph_file())
+    for spec in graph.nodes:
+        cmd = node_command(spec, graph.use_sim_time, '/head2', tmp_path)
+        assert '__ns:=/head2' in cmd
+        assert all(f'{src}:={dst}' in cmd for src, dst in GRAPH_REMAPS)
+        # rcl applies a file's `sim:` section to /sim only: the node gets a copy keyed /**/sim
+        files = [cmd[i + 1] for i, arg in enumerate(cmd) if arg == '--params-file']
+        assert files and all(list(yaml.safe_load(Path(f).read_text())) == [f'/**/{spec.name}']
+                             for f in files)
+    # like launch_ros: a node's relative namespace goes inside the graph's, an absolute one stays
+    assert node_namespace('/head2', 'left') == '/head2/left'
+    assert node_namespace('/head2', '/other') == '/other' and node_namespace('', 'x') == 'x'
+    assert graph_namespace('head2/') == '/head2' and graph_namespace('/') == ''
+    with pytest.raises(LaunchError, match="namespace '/2nd'"):
+        graph_namespace('/2nd')
+    from vizzy_runtime.cli import build_parser
+    assert build_parser().parse_args(['launch', '--namespace', '/head2']).namespace == '/head2'
 
 
 def test_bad_graphs_are_clear_errors(tmp_path):

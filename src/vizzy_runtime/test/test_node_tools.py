@@ -7,26 +7,27 @@ from typing import Any
 import pytest
 
 from vizzy_runtime import node_tools
-from vizzy_runtime.node_tools import LatestWorker, declare_parameters, guarded, replace_timer
+from vizzy_runtime.node_tools import (LatestWorker, Param, ParameterError, declare_parameters,
+                                     guarded, replace_timer)
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import Parameter
+from vizzy_runtime.rclpy_compat.parameter import Parameter, SetParametersResult
 from vizzy_runtime.testing import wait_until
 
 PARAMETERS = (
-    ('rate_hz', 10.0, 'Rate [Hz], in (0, 100].'),
-    ('count', 3, 'How many, >= 1.'),
-    ('lo', 1.0, 'Lower bound, < hi.'),
-    ('hi', 2.0, 'Upper bound, > lo.'),
-    ('frame_id', 'base_link', 'A frame (read-only).'),
+    Param('rate_hz', 10.0, 'Rate [Hz], in (0, 100].', '(0, 100]'),
+    Param('count', 3, 'How many, >= 1.', '[1, inf)'),
+    Param('lo', 1.0, 'Lower bound, < hi.', constraints='below hi'),
+    Param('hi', 2.0, 'Upper bound, > lo.', constraints='above lo'),
+    Param('mode', 'fast', 'fast or exact.', choices=('fast', 'exact')),
+    Param('frame_id', 'base_link', 'A frame (read-only).', read_only=True),
+    ('legacy', 7, 'A bare (name, default, description) row: no rules.'),
 )
 
 
 def check(name: str, value: Any) -> str | None:
-    if name == 'rate_hz' and not 0.0 < value <= 100.0:
-        return f'rate_hz must be in (0, 100], got {value}'
-    if name == 'count' and value < 1:
-        return f'count must be >= 1, got {value}'
+    if name == 'frame_id' and not value:
+        return 'frame_id must not be empty'
     return None
 
 
@@ -34,39 +35,75 @@ def check_all(values: dict[str, Any]) -> str | None:
     return 'lo must be < hi' if values['lo'] >= values['hi'] else None
 
 
+DEFAULTS = {'rate_hz': 10.0, 'count': 3, 'lo': 1.0, 'hi': 2.0, 'mode': 'fast',
+            'frame_id': 'base_link', 'legacy': 7}
+
+
 class ToolNode(Node):
     def __init__(self, context: Any, overrides: dict[str, Any] | None = None) -> None:
         super().__init__('tool_node', context=context, parameter_overrides=[
             Parameter(n, value=v) for n, v in (overrides or {}).items()])
         self.changes: list[dict[str, Any]] = []
-        self.p = declare_parameters(self, PARAMETERS, check, read_only={'frame_id'},
-                                    check_all=check_all, on_change=self.changes.append)
+        self.p = declare_parameters(self, PARAMETERS, check, check_all=check_all,
+                                    on_change=self.changes.append)
 
 
 def _set(node: Node, **values: Any) -> Any:
     return node.set_parameters_atomically([Parameter(n, value=v) for n, v in values.items()])
 
 
+def test_param_rows_build_descriptors() -> None:
+    rate, count = PARAMETERS[0].descriptor(), PARAMETERS[1].descriptor()
+    assert [(r.from_value, r.to_value, r.step)
+            for r in rate.floating_point_range] == [(0.0, 100.0, 0.0)]
+    assert not len(rate.integer_range) and rate.additional_constraints == 'in (0, 100]'
+    assert [(r.from_value, r.to_value) for r in count.integer_range] == [(1, 2 ** 63 - 1)]
+    assert count.additional_constraints == ''       # an integer range says it all
+    assert PARAMETERS[4].descriptor().additional_constraints == 'one of: fast, exact'
+    assert PARAMETERS[2].descriptor().additional_constraints == 'below hi'
+    assert PARAMETERS[5].descriptor().read_only
+    # excluded integer bounds are the next integers; steps pass through
+    seed = Param('seed', 0, 'Seed.', '[0, 2147483648)')
+    assert seed.descriptor().integer_range[0].to_value == 2 ** 31 - 1
+    stride = Param('stride', 8, 'Stride.', '[8, 64]', step=8).descriptor().integer_range[0]
+    assert (stride.from_value, stride.to_value, stride.step) == (8, 64, 8)
+    # a malformed table fails at import, not when a user sets a value
+    for bad in (dict(range='0..1'), dict(range='[2, 1]'), dict(range='[1.5, 3]'),
+                dict(range='[5, 9]')):
+        with pytest.raises((TypeError, ValueError)):
+            Param('x', 3, 'X.', **bad)
+    with pytest.raises(ValueError):
+        Param('m', 'slow', 'M.', choices=('fast',))
+
+
 def test_startup_values_are_declared_described_and_read(context):
     node = ToolNode(context, {'rate_hz': 20.0})
     try:
-        assert node.p == {'rate_hz': 20.0, 'count': 3, 'lo': 1.0, 'hi': 2.0,
-                          'frame_id': 'base_link'}
+        assert node.p == {**DEFAULTS, 'rate_hz': 20.0}
         assert node.describe_parameter('count').description == 'How many, >= 1.'
         assert node.describe_parameter('frame_id').read_only
         assert not node.describe_parameter('rate_hz').read_only
+        assert node.describe_parameter('mode').additional_constraints == 'one of: fast, exact'
     finally:
         node.destroy_node()
 
 
-def test_bad_startup_values_raise_naming_the_node_and_every_problem(context):
-    with pytest.raises(ValueError) as err:
-        ToolNode(context, {'rate_hz': -1.0, 'count': 0, 'lo': 5.0})
+def test_bad_startup_values_raise_one_line_naming_the_node_and_every_problem(context):
+    with pytest.raises(ParameterError) as err:
+        ToolNode(context, {'rate_hz': -1.0, 'count': 0, 'lo': 5.0, 'mode': 'slow',
+                           'legacy': 'seven'})
     message = str(err.value)
-    assert message.startswith('tool_node: bad parameters: ')
-    assert 'rate_hz must be in (0, 100], got -1.0' in message
-    assert 'count must be >= 1, got 0' in message
+    assert isinstance(err.value, ValueError) and '\n' not in message
+    assert message.startswith('tool_node: ')
+    assert "parameter 'rate_hz' = -1.0: out of range (0, 100]" in message      # the descriptor
+    assert "parameter 'count' = 0: out of range [1, inf)" in message
+    assert "parameter 'legacy' = 'seven': expected integer, got string" in message
+    assert "parameter 'mode' = 'slow': mode must be one of: fast, exact; got 'slow'" in message
     assert 'lo must be < hi' in message
+    assert node_tools.startup_error_line(err.value) == message
+    # the excluded bound itself, which the descriptor's inclusive range admits
+    with pytest.raises(ParameterError, match=r"'rate_hz' = 0.0: rate_hz must be in \(0, 100\]"):
+        ToolNode(context, {'rate_hz': 0.0})
 
 
 def test_invalid_sets_are_refused_with_the_reason_and_change_nothing(context):
@@ -74,13 +111,17 @@ def test_invalid_sets_are_refused_with_the_reason_and_change_nothing(context):
     try:
         result = node.set_parameters([Parameter('rate_hz', value=0.0)])[0]
         assert not result.successful and result.reason == 'rate_hz must be in (0, 100], got 0.0'
+        result = node.set_parameters([Parameter('rate_hz', value=101.0)])[0]   # the descriptor
+        assert not result.successful and result.reason.startswith('Parameter rate_hz out of range')
+        result = node.set_parameters([Parameter('mode', value='slow')])[0]
+        assert not result.successful and 'one of: fast, exact' in result.reason
         result = _set(node, lo=3.0)  # valid alone, not with hi
         assert not result.successful and result.reason == 'lo must be < hi'
         result = _set(node, rate_hz=50.0, count=0)  # one bad value refuses the whole set
         assert not result.successful and 'count' in result.reason
-        assert not node.set_parameters([Parameter('frame_id', value='odom')])[0].successful
-        assert node.p == {'rate_hz': 10.0, 'count': 3, 'lo': 1.0, 'hi': 2.0,
-                          'frame_id': 'base_link'}
+        result = node.set_parameters([Parameter('frame_id', value='odom')])[0]
+        assert not result.successful and 'read-only' in result.reason
+        assert node.p == DEFAULTS
         assert node.get_parameter('rate_hz').value == 10.0
         assert node.changes == []
     finally:
@@ -103,23 +144,78 @@ def test_accepted_sets_update_the_dict_and_report_what_changed(context):
         node.destroy_node()
 
 
+def test_changes_apply_only_after_every_on_set_callback_accepted(context):
+    node = ToolNode(context)
+    try:
+        # a refusing callback added before or after declare_parameters' own: either way the
+        # dict (and on_change) never sees the refused value, since they follow post-set
+        node.add_on_set_parameters_callback(lambda params: SetParametersResult(
+            successful=all(p.name != 'count' or p.value != 5 for p in params), reason='no 5'))
+        assert not node.set_parameters([Parameter('count', value=5)])[0].successful
+        assert node.p['count'] == 3 and node.changes == []
+        assert node.set_parameters([Parameter('count', value=6)])[0].successful
+        assert node.p['count'] == 6 and node.changes == [{'count': 6}]
+    finally:
+        node.destroy_node()
+
+
+def test_on_change_that_raises_is_logged_and_the_value_stays_set(context, capsys):
+    node = Node('failing_apply', context=context)
+    try:
+        def apply(changed: dict[str, Any]) -> None:
+            raise RuntimeError('cannot apply')
+
+        p = declare_parameters(node, (Param('x', 1, 'X.', '[0, 10]'),), on_change=apply)
+        assert node.set_parameters([Parameter('x', value=2)])[0].successful
+        assert p['x'] == 2 and node.get_parameter('x').value == 2
+        assert 'applying x failed: RuntimeError: cannot apply' in capsys.readouterr().err
+    finally:
+        node.destroy_node()
+
+
 def test_a_check_that_raises_refuses_instead(context):
     node = Node('raising', context=context)
     try:
         def bad_check(name: str, value: Any) -> str | None:
             raise TypeError('boom')
 
-        with pytest.raises(TypeError):
+        with pytest.raises(ParameterError, match="'x' = 1: x: TypeError: boom"):
             declare_parameters(node, (('x', 1, 'X.'),), bad_check)
         node.undeclare_parameter('x')
         p = declare_parameters(node, (('x', 1, 'X.'),),
-                               lambda n, v: None if isinstance(v, int) else v.missing)
+                               lambda n, v: None if v < 5 else v.missing)
         result = node.set_parameters([Parameter('use_sim_time', value=True)])[0]
         assert result.successful
         result = node.set_parameters([Parameter('x', value=2)])[0]
         assert result.successful and p['x'] == 2
+        result = node.set_parameters([Parameter('x', value=7)])[0]
+        assert not result.successful and 'AttributeError' in result.reason and p['x'] == 2
     finally:
         node.destroy_node()
+
+
+def test_startup_error_line_reads_rclpy_parameter_exceptions(context):
+    from vizzy_runtime.rclpy_compat import exceptions as exc
+    from vizzy_runtime.rclpy_compat.arguments import RosArgumentError
+
+    node = Node('plain', context=context, parameter_overrides=[Parameter('levels', value='abc'),
+                                                              Parameter('gain', value=-3)])
+    try:
+        with pytest.raises(exc.InvalidParameterTypeException) as err:
+            node.declare_parameter('levels', 5)
+        assert node_tools.startup_error_line(err.value) == (
+            "plain: parameter 'levels' = 'abc': expected integer, got string")
+        with pytest.raises(exc.InvalidParameterValueException) as err:
+            node.declare_parameter('gain', 1, Param('gain', 1, 'G.', '[0, 10]').descriptor())
+        assert node_tools.startup_error_line(err.value) == (
+            "plain: parameter 'gain' = -3: Parameter gain out of range. Min: 0, Max: 10, value: -3")
+    finally:
+        node.destroy_node()
+    assert node_tools.startup_error_line(RosArgumentError(
+        "--params-file p.yaml: not valid YAML (while parsing\n  a flow)")) == (
+        '--params-file p.yaml: not valid YAML (while parsing a flow)')
+    assert node_tools.startup_error_line(ValueError('unrelated')) is None
+    assert node_tools.startup_error_line(RuntimeError('boom')) is None
 
 
 def test_guarded_logs_throttled_and_returns(context, capsys):

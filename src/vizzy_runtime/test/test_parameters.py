@@ -63,10 +63,16 @@ def test_descriptor_ranges_types_and_read_only(context):
         Parameter('rate', value=20.0), Parameter('rate', value=31.0), Parameter('rate', value='fast'),
         Parameter('frame', value='ego'), Parameter('levels', value=8)])
     assert ok.successful and node.get_parameter('rate').value == 20.0
-    assert not too_big.successful and 'outside [1.0, 30.0]' in too_big.reason
-    assert not wrong_type.successful and 'expected double' in wrong_type.reason
-    assert not ro.successful and 'read-only' in ro.reason
-    assert not bad_int.successful
+    # rclpy's reasons, word for word
+    assert not too_big.successful
+    assert too_big.reason == 'Parameter rate out of range Min: 1.0, Max: 30.0, value: 31.0'
+    assert not wrong_type.successful
+    assert wrong_type.reason == "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'"
+    assert not ro.successful and ro.reason == 'Trying to set a read-only parameter: frame.'
+    assert not bad_int.successful and bad_int.reason.startswith('Parameter levels out of range.')
+    # the bounds admit values within rclpy's 1e-6 relative tolerance; NaN is never in range
+    assert node.set_parameters([Parameter('rate', value=30.0 + 1e-5)])[0].successful
+    assert not node.set_parameters([Parameter('rate', value=float('nan'))])[0].successful
     with pytest.raises(exc.InvalidParameterValueException):
         Node('ranged2', context=context, cli_args=['--ros-args', '-p', 'rate:=99.0']).declare_parameter(
             'rate', 10.0, ParameterDescriptor(floating_point_range=[FloatingPointRange(from_value=1.0, to_value=30.0)]))
@@ -91,7 +97,8 @@ def test_set_callbacks_can_reject_and_see_declarations(context):
         node.get_parameter('nope')
     with pytest.raises(exc.ParameterAlreadyDeclaredException):
         node.declare_parameter('fovea_sigma', 1.0)
-    assert not node.set_parameters([Parameter('nope', value=1)])[0].successful
+    with pytest.raises(exc.ParameterNotDeclaredException):  # as rclpy: raised, not a result
+        node.set_parameters([Parameter('nope', value=1)])
 
 
 def test_parameter_messages_round_trip():

@@ -1,7 +1,7 @@
 """`vizzy`: the ros2 verbs people know, for machines without ROS 2.
 
     vizzy run <package> <executable> [args] [--ros-args ...]
-    vizzy launch [graph.yaml] [--duration S]
+    vizzy launch [graph.yaml] [--duration S] [--namespace /NS]
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
     vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag> | reindex <bag>
@@ -39,7 +39,7 @@ def cmd_run(ns: argparse.Namespace) -> int:
 
 def cmd_launch(ns: argparse.Namespace) -> int:
     from .launcher import launch
-    codes = launch(ns.graph, ns.duration)
+    codes = launch(ns.graph, ns.duration, namespace=ns.namespace)
     failed = {n: c for n, c in codes.items() if c not in (0, None, -2, 130)}
     return 1 if failed else 0
 
@@ -69,10 +69,90 @@ def _wait_for_type(topic: str, typename: str | None, timeout: float) -> tuple[st
     return typename, qos
 
 
+class _Peers:
+    """The other ROS 2 processes (participants with rmw's `enclave=` USER_DATA) of the domain, so
+    a short-lived CLI can wait until it has heard what they announce, not a fixed time.
+
+    Fixed waits miss real ROS 2 processes on other DDS implementations: a Fast DDS
+    (rmw_fastrtps_cpp) participant is seen at once, but Cyclone often learns its readers and
+    writers only ~1.1 s later, and its ros_discovery_info sample (the node names) only with Fast
+    DDS's next periodic heartbeat, ~3 s after matching: its first sample to a reader it had just
+    matched reached Cyclone before Cyclone knew the writer, and it does not resend on Cyclone's
+    pre-emptive ACKNACK."""
+
+    # a participant seen this long with no endpoint at all has none (e.g. another CLI's)
+    ENDPOINT_GRACE_S = 2.0
+
+    def __init__(self) -> None:
+        from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsParticipant,
+                                        BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription)
+        from . import dds
+        dp = dds.participant()
+        self._self = dp.guid.bytes
+        self._participants = BuiltinDataReader(dp, BuiltinTopicDcpsParticipant)
+        self._endpoints = [BuiltinDataReader(dp, BuiltinTopicDcpsPublication),
+                           BuiltinDataReader(dp, BuiltinTopicDcpsSubscription)]
+        self.first_seen: dict[bytes, float] = {}   # live peers
+        self.with_endpoints: set[bytes] = set()
+        self.announcing: set[bytes] = set()        # peers with a ros_discovery_info writer
+
+    def poll(self) -> None:
+        from cyclonedds.core import InstanceState
+        try:
+            for s in self._participants.take(N=256):
+                key = s.key.bytes
+                if s.sample_info.instance_state != InstanceState.Alive:
+                    self.first_seen.pop(key, None)
+                elif key != self._self and b'enclave=' in _user_data(s.qos):
+                    self.first_seen.setdefault(key, time.monotonic())
+            for reader in self._endpoints:
+                for s in reader.take(N=1000):
+                    if s.sample_info.instance_state == InstanceState.Alive:
+                        self.with_endpoints.add(s.participant_key.bytes)
+                        if s.topic_name == 'ros_discovery_info':
+                            self.announcing.add(s.participant_key.bytes)
+        except Exception:  # noqa: BLE001 - decoding a peer being torn down can fail: look again
+            pass
+
+    def endpoints_known(self) -> bool:
+        """Every live peer's readers and writers have been seen (or it has none)."""
+        now = time.monotonic()
+        return all(key in self.with_endpoints or now - t > self.ENDPOINT_GRACE_S
+                   for key, t in self.first_seen.items())
+
+    def unheard(self, heard: set[bytes]) -> set[bytes]:
+        """Live peers that announce their nodes on ros_discovery_info but are not in heard."""
+        return {key for key in self.first_seen if key in self.announcing and key not in heard}
+
+
+def _user_data(qos: Any) -> bytes:
+    from cyclonedds.qos import Policy
+    for policy in qos or ():
+        if isinstance(policy, Policy.Userdata):
+            return bytes(policy.data)
+    return b''
+
+
+def _listen(wait: float, settled: Any, max_extra: float = 5.0) -> None:
+    """Listen at least `wait` seconds, then until settled() (at most max_extra seconds more)."""
+    start = time.monotonic()
+    while True:
+        elapsed = time.monotonic() - start
+        if elapsed >= wait and (settled() or elapsed >= wait + max_extra):
+            return
+        time.sleep(0.05)
+
+
 def cmd_topic_list(ns: argparse.Namespace) -> int:
     from . import dds
     disc = dds.Discovery()
-    time.sleep(ns.wait)  # discovery is asynchronous: listen for a moment before answering
+    peers = _Peers()
+
+    def settled() -> bool:
+        peers.poll()
+        return peers.endpoints_known()
+
+    _listen(ns.wait, settled)  # discovery is asynchronous: listen before answering
     topics: dict[str, set[str]] = {}
     for ep in disc.endpoints():
         topics.setdefault(ep.topic, set()).add(ep.typename)
@@ -158,7 +238,15 @@ def cmd_topic_hz(ns: argparse.Namespace) -> int:
 
 def cmd_node_list(ns: argparse.Namespace) -> int:
     from .rclpy_compat import graph
-    for namespace, name in graph.node_names_and_namespaces(ns.wait):
+    peers = _Peers()
+    graph.snapshot()  # start listening on ros_discovery_info now
+
+    def settled() -> bool:
+        peers.poll()
+        return peers.endpoints_known() and not peers.unheard(graph.announced_participants())
+
+    _listen(ns.wait, settled)
+    for namespace, name in graph.node_names_and_namespaces():
         print(f'{namespace.rstrip("/")}/{name}')
     return 0
 
@@ -211,6 +299,9 @@ def build_parser() -> argparse.ArgumentParser:
     la = sub.add_parser('launch', help='start the graph, one process per node (like ros2 launch)')
     la.add_argument('graph', nargs='?', help='graph YAML (default: vizzy_runtime config/graph.yaml)')
     la.add_argument('--duration', type=float, help='stop after this many seconds')
+    la.add_argument('--namespace', default='',
+                    help='put the whole graph in this namespace (e.g. /head2), like ros2 launch '
+                         'vizzy_runtime graph.launch.py namespace:=/head2')
     la.set_defaults(func=cmd_launch)
 
     topic = sub.add_parser('topic', help='inspect topics').add_subparsers(dest='topic_verb', required=True)

@@ -3,6 +3,13 @@
 The same YAML drives launch/graph.launch.py under `ros2 launch`, so the graph is described once.
 Ctrl-C (or SIGTERM, or the duration running out) sends SIGINT to every node, like ros2 launch,
 then SIGTERM and SIGKILL to whatever is still running after a grace period.
+
+A graph-level namespace (`vizzy launch --namespace /head2`; `namespace:=/head2` under ros2 launch)
+prefixes every node's namespace as launch_ros's PushROSNamespace does (a node's absolute namespace
+stays), and adds GRAPH_REMAPS to every node so that absolute /clock, /tf and /tf_static users
+(rclpy's time source, tools) follow the namespace too: two graphs in /head1 and /head2 on one
+domain do not see each other. rcl applies a params file's bare `sim:` section to /sim only, so a
+namespaced node gets a copy of each file whose bare keys read `/**/sim` (namespace_proof_params).
 """
 
 from __future__ import annotations
@@ -10,9 +17,11 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import os
+import re
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -24,6 +33,34 @@ import yaml
 
 class LaunchError(ValueError):
     """A graph description or node that cannot be launched (the message says which and why)."""
+
+
+# Given to every node of a namespaced graph (before the node's own remappings, like SetRemap):
+# relative targets resolve inside the namespace. At the root namespace they would change nothing.
+GRAPH_REMAPS: tuple[tuple[str, str], ...] = (
+    ('/clock', 'clock'), ('/tf', 'tf'), ('/tf_static', 'tf_static'))
+
+_NAMESPACE = re.compile(r'(/[A-Za-z_][A-Za-z0-9_]*)+')
+
+
+def graph_namespace(namespace: str | None) -> str:
+    """'' for the root namespace, else an absolute namespace without a trailing '/'."""
+    ns = (namespace or '').strip().rstrip('/')
+    if not ns:
+        return ''
+    if not ns.startswith('/'):
+        ns = '/' + ns
+    if not _NAMESPACE.fullmatch(ns):
+        raise LaunchError(f'namespace {namespace!r}: expected /name[/name...] (letters, digits and '
+                          '_, each part not starting with a digit)')
+    return ns
+
+
+def node_namespace(graph_ns: str, node_ns: str) -> str:
+    """A node's namespace inside the graph's (launch_ros prefix_namespace: absolute ones stay)."""
+    if not graph_ns or node_ns.startswith('/'):
+        return node_ns
+    return f'{graph_ns}/{node_ns}' if node_ns else graph_ns
 
 
 @dataclass
@@ -103,19 +140,47 @@ def find_entry_point(package: str, executable: str) -> importlib.metadata.EntryP
     raise LaunchError(f'no executable {executable!r} in package {package!r} (it has: {names})')
 
 
-def node_command(spec: NodeSpec, use_sim_time: bool) -> list[str]:
+def namespace_proof_params(path: Path, out_dir: Path) -> Path:
+    """path, or a copy of it in out_dir whose bare node-name keys (`sim:`, which rcl matches to
+    the node /sim only) read `/**/sim:`, matching that node name in any namespace."""
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise LaunchError(f'parameters file {path}: {exc}') from None
+    if not isinstance(data, dict) or all(str(key).startswith('/') for key in data):
+        return path
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out = Path(tempfile.mkstemp(prefix=f'{path.stem}_', suffix='.yaml', dir=out_dir)[1])
+    out.write_text(yaml.safe_dump(
+        {(key if str(key).startswith('/') else f'/**/{key}'): value for key, value in data.items()},
+        sort_keys=False))
+    return out
+
+
+def node_command(spec: NodeSpec, use_sim_time: bool, namespace: str = '',
+                 params_dir: Path | None = None) -> list[str]:
+    """The node's command line; namespace: the graph's (graph_namespace), '' for the root;
+    params_dir: where a namespaced node's rewritten params files go (a new temporary folder if
+    None)."""
     find_entry_point(spec.package, spec.executable)  # fail before starting anything
     share = share_dir(spec.package)
+    namespace = graph_namespace(namespace)
     ros_args = ['--ros-args', '-r', f'__node:={spec.name}']
-    if spec.namespace:
-        ros_args += ['-r', f'__ns:={spec.namespace}']
+    ns = node_namespace(namespace, spec.namespace)
+    if ns:
+        ros_args += ['-r', f'__ns:={ns}']
     for rel in spec.parameters:
         path = (share / rel) if not os.path.isabs(rel) else Path(rel)
         if not path.is_file():
             raise LaunchError(f'node {spec.name}: parameters file {path} not found')
+        if ns:
+            params_dir = params_dir or Path(tempfile.mkdtemp(prefix='vizzy_launch_'))
+            path = namespace_proof_params(path, params_dir)
         ros_args += ['--params-file', str(path)]
     if spec.use_sim_time if spec.use_sim_time is not None else use_sim_time:
         ros_args += ['-p', 'use_sim_time:=true']
+    for src, dst in (GRAPH_REMAPS if namespace else ()):
+        ros_args += ['-r', f'{src}:={dst}']
     for src, dst in spec.remappings.items():
         ros_args += ['-r', f'{src}:={dst}']
     return [sys.executable, '-m', 'vizzy_runtime.cli', 'run', spec.package, spec.executable,
@@ -132,8 +197,11 @@ class Launcher:
     """Starts and stops a Graph's processes."""
 
     def __init__(self, graph: Graph, *, env: dict[str, str] | None = None, grace_s: float = 5.0,
-                 output: TextIO | None = None) -> None:
+                 output: TextIO | None = None, namespace: str = '') -> None:
         self.graph = graph
+        self.namespace = graph_namespace(namespace)
+        self._params_dir = tempfile.TemporaryDirectory(prefix='vizzy_launch_',
+                                                       ignore_cleanup_errors=True)
         self.env = {**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}
         self.grace_s = grace_s
         self.output = output or sys.stdout
@@ -141,7 +209,9 @@ class Launcher:
         self._threads: list[threading.Thread] = []
 
     def start(self) -> None:
-        commands = [(spec.name, node_command(spec, self.graph.use_sim_time)) for spec in self.graph.nodes]
+        commands = [(spec.name, node_command(spec, self.graph.use_sim_time, self.namespace,
+                                             Path(self._params_dir.name)))
+                    for spec in self.graph.nodes]
         for index, (name, cmd) in enumerate(commands, 1):
             proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                     text=True, bufsize=1, start_new_session=True)
@@ -186,14 +256,16 @@ class Launcher:
                 time.sleep(0.05)
         for t in self._threads:
             t.join(timeout=1.0)
+        self._params_dir.cleanup()   # the namespaced nodes' params files, read at start-up
         return self.poll()
 
 
 def launch(graph_file: str | Path | None = None, duration: float | None = None,
-           env: dict[str, str] | None = None) -> dict[str, Any]:
-    """Run a graph until duration or Ctrl-C and stop it cleanly; returns the exit codes."""
+           env: dict[str, str] | None = None, namespace: str = '') -> dict[str, Any]:
+    """Run a graph (in namespace, '' for the root) until duration or Ctrl-C and stop it cleanly;
+    returns the exit codes."""
     graph = load_graph(graph_file or default_graph_file())
-    launcher = Launcher(graph, env=env)
+    launcher = Launcher(graph, env=env, namespace=namespace)
     try:
         launcher.start()
         launcher.wait(duration)

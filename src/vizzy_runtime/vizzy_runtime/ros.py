@@ -39,8 +39,14 @@ if USING_REAL_ROS:
     from rcl_interfaces.msg import (  # type: ignore[import-not-found]
         FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult)
     from rclpy.duration import Duration  # type: ignore[import-not-found]
+    from rclpy.exceptions import (  # type: ignore[import-not-found]
+        InvalidParameterTypeException, InvalidParameterValueException, ParameterException)
     from rclpy.executors import (  # type: ignore[import-not-found]
         ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
+    from rclpy.exceptions import InvalidHandle  # type: ignore[import-not-found]
+    from rclpy.impl.implementation_singleton import (  # type: ignore[import-not-found]
+        rclpy_implementation as _rclpy_impl)
+    RCLError = _rclpy_impl.RCLError  # e.g. publishing on a context that was shut down
     from rclpy.node import Node  # type: ignore[import-not-found]
     from rclpy.parameter import Parameter  # type: ignore[import-not-found]
     from rclpy.qos import (  # type: ignore[import-not-found]
@@ -51,8 +57,11 @@ else:
     from . import rclpy_compat as rclpy  # type: ignore[no-redef]
     from .rclpy_compat.context import Context  # type: ignore[assignment]
     from .rclpy_compat.duration import Duration  # type: ignore[assignment]
+    from .rclpy_compat.exceptions import (  # type: ignore[assignment]
+        InvalidParameterTypeException, InvalidParameterValueException, ParameterException)
     from .rclpy_compat.executors import (  # type: ignore[assignment]
         ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
+    from .rclpy_compat.exceptions import InvalidHandle, RCLError  # type: ignore[assignment]
     from .rclpy_compat.node import Node  # type: ignore[assignment]
     from .rclpy_compat.parameter import (  # type: ignore[assignment]
         FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, ParameterType,
@@ -83,8 +92,9 @@ def message(typename: str) -> Any:
 
 __all__ = [
     'USING_REAL_ROS', 'Context', 'Duration', 'DurabilityPolicy', 'ExternalShutdownException',
-    'FloatingPointRange', 'HistoryPolicy', 'IntegerRange', 'MultiThreadedExecutor', 'Node',
-    'Parameter', 'ParameterDescriptor', 'ParameterType', 'QoSProfile', 'ReliabilityPolicy',
+    'FloatingPointRange', 'HistoryPolicy', 'IntegerRange', 'InvalidParameterTypeException',
+    'InvalidHandle', 'InvalidParameterValueException', 'MultiThreadedExecutor', 'Node', 'ParameterException',
+    'Parameter', 'ParameterDescriptor', 'ParameterType', 'QoSProfile', 'RCLError', 'ReliabilityPolicy',
     'SetParametersResult', 'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched',
     'qos_profile_sensor_data', 'qos_profile_system_default', 'rclpy',
 ]

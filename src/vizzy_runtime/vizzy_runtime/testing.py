@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import time
 from pathlib import Path
@@ -44,73 +45,161 @@ def real_rclpy_python() -> Path:
     pytest.skip(f'no .venv-ros (the real rclpy): {reason}')
 
 
+def fastdds_profile() -> Path:
+    """The Fast DDS profile of the real-rclpy tier (the loopback-only counterpart of
+    dds.loopback_config(); scripts/test_ros.sh uses the same file)."""
+    return Path(__file__).resolve().parents[1] / 'config' / 'fastdds_loopback.xml'
+
+
 def real_rclpy_env(**extra: str) -> dict[str, str]:
     """The environment for a .venv-ros process: the caller's, with VIZZY_RUNTIME=ros (the
     real rclpy or an error) and the same ROS_DOMAIN_ID."""
     env = dict(os.environ, VIZZY_RUNTIME='ros', PYTHONUNBUFFERED='1')
+    # Fast DDS on 127.0.0.1 only, unicast discovery, 8 MiB receive buffer: see the profile
+    # (SYSTEM_DEFAULT: rmw_fastrtps then takes the transports from it; LOCALHOST would add its own)
+    env.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(fastdds_profile()))
+    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SYSTEM_DEFAULT')
     env.pop('PYTHONPATH', None)
     env.update(extra)
     return env
 
 
-# --- a node's parameter table (PARAMETERS: (name, default, description) rows, and its check) ----
+# --- a node's parameter table (node_tools.Param rows), checked on a bare node that declares it ---
 
-def check_parameters_described_and_unique(parameters: Sequence[tuple[str, Any, str]]) -> None:
-    """Every parameter has a description, and no name is declared twice."""
-    names = [name for name, _, _ in parameters]
+@contextlib.contextmanager
+def parameter_table_node(parameters: Sequence[Any], check: Check | None = None,
+                         check_all: Any = None, overrides: dict[str, Any] | None = None,
+                         node_name: str = 'parameter_table') -> Iterator[Any]:
+    """A bare node, on the runtime under test with a context of its own, that declares
+    parameters as the real node does (node_tools.declare_parameters, overrides as start-up
+    values); raises what declare_parameters raises. The node's parameters' rules are then the
+    middleware's (descriptor ranges, types, read-only) and the table's own, as a user meets them."""
+    from vizzy_runtime.node_tools import declare_parameters
+    from vizzy_runtime.ros import Context, Node, Parameter
+
+    context = Context()
+    context.init(['parameter_table_node'])
+    try:
+        node = Node(node_name, context=context, start_parameter_services=False,
+                    parameter_overrides=[Parameter(n, value=v)
+                                         for n, v in (overrides or {}).items()])
+        try:
+            declare_parameters(node, parameters, check, check_all=check_all)
+            yield node
+        finally:
+            node.destroy_node()
+    finally:
+        context.try_shutdown()
+
+
+@contextlib.contextmanager
+def parameter_refusals(parameters: Sequence[Any], check: Check | None = None,
+                       check_all: Any = None) -> Iterator[Callable[[str, Any], 'str | None']]:
+    """refused(name, value): why a node declaring parameters refuses to set name to value (the
+    SetParametersResult's reason), or None if it accepts (the old value is then set back)."""
+    from vizzy_runtime.ros import Parameter
+
+    with parameter_table_node(parameters, check, check_all) as node:
+        def refused(name: str, value: Any) -> str | None:
+            old = node.get_parameter(name).value
+            result = node.set_parameters([Parameter(name, value=value)])[0]
+            if not result.successful:
+                return result.reason or '(no reason given)'
+            node.set_parameters([Parameter(name, value=old)])
+            return None
+        yield refused
+
+
+def startup_problem(parameters: Sequence[Any], check: Check | None = None,
+                    check_all: Any = None, **overrides: Any) -> str | None:
+    """The one line of the ParameterError a node declaring parameters raises when started with
+    overrides (-p name:=value), or None if it starts."""
+    from vizzy_runtime.node_tools import ParameterError
+
+    try:
+        with parameter_table_node(parameters, check, check_all, overrides):
+            return None
+    except ParameterError as err:
+        return str(err)
+
+
+def _params(parameters: Sequence[Any]) -> list[Any]:
+    from vizzy_runtime.node_tools import Param
+
+    return [Param.of(row) for row in parameters]
+
+
+def _outside(spec: Any) -> list[Any]:
+    """Values just outside spec's range (and its excluded bounds), to be refused."""
+    from vizzy_runtime.node_tools import INT64_MAX, INT64_MIN
+
+    if spec.range is None:
+        return []
+    lo, hi, lo_open, hi_open = spec.bounds()
+    if isinstance(spec.default, int):
+        d_lo, d_hi = spec.descriptor_bounds()
+        return [v for v, ok in ((d_lo - 1, d_lo > INT64_MIN), (d_hi + 1, d_hi < INT64_MAX)) if ok]
+    out = []
+    for bound, excluded, sign in ((lo, lo_open, -1.0), (hi, hi_open, 1.0)):
+        if math.isfinite(bound):
+            out.append(bound + sign * max(1e-3, 1e-3 * abs(bound)))
+            if excluded:
+                out.append(float(bound))
+        elif excluded:
+            out.append(bound)        # (-inf, ...: -inf itself
+    return out
+
+
+def check_parameter_table(parameters: Sequence[Any], check: Check | None = None,
+                          config_path: str | Path | None = None,
+                          node_name: str | None = None, check_all: Any = None) -> None:
+    """A node's table: Param rows, described, unique; a node declaring it starts with the
+    defaults and refuses, through the middleware, values just outside every range, the excluded
+    bounds, values outside the choices and changes to read-only parameters; at least one numeric
+    parameter has a range; and (given config_path and node_name) the config YAML is for node_name
+    only, sets declared parameters to values of the declared types, and the node starts with it."""
+    from vizzy_runtime.node_tools import Param
+
+    assert all(isinstance(row, Param) for row in parameters), 'rows must be node_tools.Param'
+    specs = _params(parameters)
+    names = [spec.name for spec in specs]
     assert len(names) == len(set(names)), f'declared more than once: {names}'
-    for name, _, description in parameters:
-        assert description.strip(), f'{name} has no description'
+    for spec in specs:
+        assert spec.description.strip(), f'{spec.name} has no description'
+        spec.descriptor()  # builds
+    assert any(spec.range for spec in specs), 'at least one numeric parameter has a range'
+    with parameter_refusals(specs, check, check_all) as refused:   # the defaults start the node
+        for spec in specs:
+            bad = _outside(spec) + (['not-one-of-the-choices'] if spec.choices else [])
+            if spec.read_only:
+                bad = [spec.default]
+            for value in bad:
+                assert refused(spec.name, value), f'{spec.name}={value!r} was accepted'
+    if config_path is not None:
+        assert node_name, 'check_parameter_table: config_path needs node_name'
+        check_config(specs, check, config_path, node_name, check_all)
 
 
-def check_defaults_valid(parameters: Sequence[tuple[str, Any, str]], check: Check) -> None:
-    """check accepts every default."""
-    for name, default, _ in parameters:
-        problem = check(name, default)
-        assert problem is None, f'default of {name}: {problem}'
-
-
-def check_out_of_range_refused(parameters: Sequence[tuple[str, Any, str]], check: Check) -> None:
-    """At least one numeric parameter has a range: check refuses -1e9 for it."""
-    refused = [name for name, default, _ in parameters
-               if isinstance(default, (int, float)) and not isinstance(default, bool)
-               and check(name, -1e9) is not None]
-    assert refused, 'at least one numeric parameter has a range'
-
-
-def check_config(parameters: Sequence[tuple[str, Any, str]], check: Check,
-                 config_path: str | Path, node_name: str) -> None:
-    """The YAML at config_path is for node_name only and sets declared parameters to valid values
-    of the declared types (use_sim_time aside)."""
+def check_config(parameters: Sequence[Any], check: Check | None, config_path: str | Path,
+                 node_name: str, check_all: Any = None) -> None:
+    """The YAML at config_path is for node_name only and sets declared parameters to values of
+    the declared types (use_sim_time aside), which a node declaring parameters starts with."""
     import yaml
 
     doc = yaml.safe_load(Path(config_path).read_text())
     assert list(doc) == [node_name], f'the config is for node {node_name} only, not {list(doc)}'
     params = doc[node_name]['ros__parameters']
-    declared = {name: default for name, default, _ in parameters}
+    declared = {spec.name: spec.default for spec in _params(parameters)}
     undeclared = set(params) - {'use_sim_time'} - set(declared)
     assert not undeclared, f'{config_path} sets undeclared parameters {sorted(undeclared)}'
-    for name, value in params.items():
-        if name == 'use_sim_time':
-            continue
+    values = {name: value for name, value in params.items() if name != 'use_sim_time'}
+    for name, value in values.items():
         # ROS 2 parameters are typed: 15 (integer) does not override 15.0 (double).
-        assert type(value) is type(declared[name]), (f'{name}: {type(value).__name__} in the '
-                                                     f'config, {type(declared[name]).__name__} declared')
-        problem = check(name, value)
-        assert problem is None, f'{name} in the config: {problem}'
-
-
-def check_parameter_table(parameters: Sequence[tuple[str, Any, str]], check: Check,
-                          config_path: str | Path | None = None,
-                          node_name: str | None = None) -> None:
-    """All the checks above: described and unique, defaults valid, a range refused, and (given
-    config_path and node_name) the config YAML."""
-    check_parameters_described_and_unique(parameters)
-    check_defaults_valid(parameters, check)
-    check_out_of_range_refused(parameters, check)
-    if config_path is not None:
-        assert node_name, 'check_parameter_table: config_path needs node_name'
-        check_config(parameters, check, config_path, node_name)
+        assert type(value) is type(declared[name]), (
+            f'{name}: {type(value).__name__} in the config, {type(declared[name]).__name__} '
+            'declared')
+    problem = startup_problem(parameters, check, check_all, **values)
+    assert problem is None, f'{config_path}: {problem}'
 
 
 @contextlib.contextmanager
@@ -159,16 +248,24 @@ def spinning(context: Any, nodes: Sequence[Any], ready: Callable[[], bool],
             node.destroy_node()
 
 
-def check_node_parameters(ros_node: Any, parameters: Sequence[tuple[str, Any, str]],
+def check_node_parameters(ros_node: Any, parameters: Sequence[Any],
                           bad_name: str, bad_value: Any) -> None:
-    """A running node declares every parameter at its default and refuses bad_name=bad_value,
-    naming bad_name in the reason."""
+    """A running node declares every parameter at its default with the descriptor its row
+    describes (range, read_only, additional_constraints, description), and refuses
+    bad_name=bad_value, naming bad_name in the reason."""
     from vizzy_runtime.ros import Parameter
 
-    for name, default, _ in parameters:
-        value = ros_node.get_parameter(name).value
-        value = list(value) if isinstance(default, list) else value
-        assert value == default, f'{name} is {value!r}, declared default {default!r}'
+    for spec in _params(parameters):
+        value = ros_node.get_parameter(spec.name).value
+        value = list(value) if isinstance(spec.default, list) else value
+        assert value == spec.default, f'{spec.name} is {value!r}, declared default {spec.default!r}'
+        want, got = spec.descriptor(), ros_node.describe_parameter(spec.name)
+        for field in ('description', 'additional_constraints', 'read_only'):
+            assert getattr(got, field) == getattr(want, field), f'{spec.name}: {field} differs'
+        for field in ('integer_range', 'floating_point_range'):
+            ranges = [(r.from_value, r.to_value, r.step) for r in getattr(got, field)]
+            assert ranges == [(r.from_value, r.to_value, r.step) for r in getattr(want, field)], (
+                f'{spec.name}: {field} {ranges}')
     result = ros_node.set_parameters([Parameter(bad_name, value=bad_value)])[0]
     assert not result.successful, f'{bad_name}={bad_value!r} was accepted'
     assert bad_name in result.reason, f'the reason does not name {bad_name}: {result.reason!r}'

@@ -32,8 +32,10 @@ import numpy as np
 __all__ = ['TF_STATIC_TOPIC', 'TF_TOPIC', 'TransformBuffer', 'TransformListener',
            'matrices_from_transforms', 'quaternions_to_matrices']
 
-TF_TOPIC = '/tf'
-TF_STATIC_TOPIC = '/tf_static'
+# Relative, so each namespaced head keeps its own tree (the multi-robot idiom); at the root
+# namespace they resolve to /tf and /tf_static, tf2_ros's names.
+TF_TOPIC = 'tf'
+TF_STATIC_TOPIC = 'tf_static'
 
 
 def quaternions_to_matrices(quaternions: np.ndarray) -> np.ndarray:
@@ -224,6 +226,7 @@ class TransformBuffer:
 class TransformListener:
     """Fills a TransformBuffer from /tf and /tf_static on a node (either rclpy).
 
+    Topics `tf` and `tf_static`, relative to the node's namespace (/tf and /tf_static at the root).
     /tf: reliable, volatile, keep last 100 (tf2_ros' listener QoS); /tf_static: reliable,
     transient local, keep last 100, so a late joiner still gets every static broadcaster's latched
     message. A bad message (NaN, zero quaternion, empty frame id) is logged, throttled, and skipped;
@@ -250,10 +253,12 @@ class TransformListener:
         self._subs = [
             node.create_subscription(
                 tf_message, tf_topic,
-                guarded(node, f'{tf_topic}: skipped a TFMessage', self._on_tf), dynamic_qos),
+                guarded(node, f'{node.resolve_topic_name(tf_topic)}: skipped a TFMessage',
+                        self._on_tf), dynamic_qos),
             node.create_subscription(
                 tf_message, tf_static_topic,
-                guarded(node, f'{tf_static_topic}: skipped a TFMessage', self._on_tf),
+                guarded(node, f'{node.resolve_topic_name(tf_static_topic)}: skipped a TFMessage',
+                        self._on_tf),
                 static_qos),
         ]
 

@@ -19,8 +19,8 @@ from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
     LEFT_OPTICAL_FRAME, RIGHT_OPTICAL_FRAME, GazeSplit, home_posture, joint_limits,
     solve_fixation, velocity_limits)
-from vizzy_sim_bridge.gaze_controller_node import (
-    COMMAND_TOPIC, JOINT_COMMANDS_TOPIC, PARAMETERS, STATE_TOPIC, GazeControllerNode)
+from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
+from vizzy_sim_bridge.gaze_controller_node import PARAMETERS, GazeControllerNode
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -31,7 +31,7 @@ TFMessage = message('tf2_msgs/msg/TFMessage')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
 
 TIMEOUT = 20.0
-DEFAULTS = {name: value for name, value, _ in PARAMETERS}
+DEFAULTS = {p.name: p.default for p in PARAMETERS}
 NAMES = list(kinematics.JOINT_NAMES)
 FX = 320.0 / math.tan(math.radians(85.4) / 2)
 
@@ -50,19 +50,23 @@ def _tf(transforms: list[Any]) -> Any:
 
 class FakeHead(Node):
     """Publishes the head's tf and joint states; jumps to each setpoint it is sent, and sends
-    the test's gaze commands."""
+    the test's gaze commands. On the controller's resolved topic names."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, controller: Any) -> None:
         super().__init__('fake_head', context=context, start_parameter_services=False)
         self.joints = home_posture()
         self.commands: list[tuple[int, np.ndarray]] = []   # (stamp [ns], positions)
         self.states: list[Any] = []
-        self.static_pub = self.create_publisher(TFMessage, '/tf_static', qos_profile_latched)
-        self.tf_pub = self.create_publisher(TFMessage, '/tf', 100)
-        self.joint_pub = self.create_publisher(JointState, '/joint_states', 10)
-        self.command_pub = self.create_publisher(GazeCommand, COMMAND_TOPIC, 10)
-        self.create_subscription(JointState, JOINT_COMMANDS_TOPIC, self._on_command, 100)
-        self.create_subscription(GazeState, STATE_TOPIC, self.states.append, 100)
+        self.static_pub = self.create_publisher(
+            TFMessage, controller.resolve_topic_name(TF_STATIC_TOPIC), qos_profile_latched)
+        self.tf_pub = self.create_publisher(TFMessage, controller.resolve_topic_name(TF_TOPIC), 100)
+        self.joint_pub = self.create_publisher(
+            JointState, controller._joint_states_sub.topic_name, 10)
+        self.command_pub = self.create_publisher(GazeCommand, controller._gaze_sub.topic_name, 10)
+        self.create_subscription(JointState, controller._command_pub.topic_name,
+                                 self._on_command, 100)
+        self.create_subscription(GazeState, controller._state_pub.topic_name,
+                                 self.states.append, 100)
         self.static_pub.publish(_tf(kinematics.static_transforms()))
         self.create_timer(0.02, self.publish_joints)  # like a robot: joint states and tf at 50 Hz
 
@@ -92,8 +96,8 @@ class FakeHead(Node):
 
 @pytest.fixture
 def head_and_controller(context):
-    head = FakeHead(context)
     controller = GazeControllerNode(context=context)
+    head = FakeHead(context, controller)
     with spinning(context, [head, controller],
                   lambda: head.command_pub.get_subscription_count() > 0
                   and controller.tf_buffer.can_transform('base_link', 'ego')

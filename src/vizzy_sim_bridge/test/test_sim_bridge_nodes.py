@@ -6,17 +6,20 @@ import pytest
 import yaml
 
 from vizzy_runtime.ros import Parameter
-from vizzy_runtime.testing import check_node_parameters, check_parameter_table, node_under_test
+from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
+                                   parameter_refusals, startup_problem)
 from vizzy_sim_bridge import gaze_controller_node, sim_node
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
-NODES = [('sim', sim_node), ('gaze_controller', gaze_controller_node)]
+# (node name, module, check, check_all): the gaze controller's rules are all ranges
+NODES = [('sim', sim_node, sim_node.check_parameter, sim_node.check_parameters),
+         ('gaze_controller', gaze_controller_node, None, gaze_controller_node.check_parameters)]
 
 
-@pytest.mark.parametrize('node_name, module', NODES)
-def test_parameter_table_and_config(node_name, module) -> None:
-    check_parameter_table(module.PARAMETERS, module.check_parameter,
-                          CONFIG / f'{node_name}.yaml', node_name)
+@pytest.mark.parametrize('node_name, module, check, check_all', NODES)
+def test_parameter_table_and_config(node_name, module, check, check_all) -> None:
+    check_parameter_table(module.PARAMETERS, check, CONFIG / f'{node_name}.yaml', node_name,
+                          check_all)
 
 
 def test_sim_config_runs_the_sim_on_wall_time() -> None:
@@ -25,14 +28,25 @@ def test_sim_config_runs_the_sim_on_wall_time() -> None:
 
 
 def test_out_of_range_values_are_refused() -> None:
-    assert sim_node.check_parameter('rate_hz', 0.0)
-    assert sim_node.check_parameter('initial_joint_positions', [0.0] * 4)
-    assert sim_node.check_parameter('initial_joint_positions', [float('nan')] + [0.0] * 4)
-    assert sim_node.check_parameter('scene', 'kitchen')
-    assert sim_node.check_parameter('render_backend', 'vulkan')
+    sim = (sim_node.PARAMETERS, sim_node.check_parameter, sim_node.check_parameters)
+    with parameter_refusals(*sim) as refused:
+        assert refused('rate_hz', 0.0) and refused('rgbd_max_range_m', 0.4)   # below min range
+        assert refused('rgbd_min_range_m', 10.0)                               # [0, 10)
+    # read-only: refused at start-up only
+    assert 'initial_joint_positions' in startup_problem(
+        *sim, initial_joint_positions=[0.0] * 4)
+    assert 'must be finite' in startup_problem(
+        *sim, initial_joint_positions=[float('nan')] + [0.0] * 4)
+    assert "parameter 'scene' = 'kitchen'" in startup_problem(*sim, scene='kitchen')
+    assert "'render_backend' = 'vulkan'" in startup_problem(*sim, render_backend='vulkan')
+    assert "parameter 'width' = 8: out of range [16, 4096]" in startup_problem(*sim, width=8)
     assert sim_node.check_parameters({'rgbd_min_range_m': 2.0, 'rgbd_max_range_m': 1.0})
-    assert gaze_controller_node.check_parameter('saccade_min_duration_s', -0.1)
-    assert gaze_controller_node.check_parameter('max_fixation_distance_m', 0.0)
+    gaze = (gaze_controller_node.PARAMETERS, None, gaze_controller_node.check_parameters)
+    with parameter_refusals(*gaze) as refused:
+        assert refused('saccade_min_duration_s', -0.1)
+        assert refused('max_fixation_distance_m', 0.0)
+        assert refused('max_velocity_rad_s', gaze_controller_node._VMAX * 1.01)
+        assert refused('max_velocity_rad_s', gaze_controller_node._VMAX) is None
 
 
 @pytest.mark.parametrize('make, module, bad', [

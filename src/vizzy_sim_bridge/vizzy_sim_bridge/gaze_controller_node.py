@@ -1,6 +1,6 @@
 """The `gaze_controller` node: arbitrates /gaze/command, moves the head, reports /gaze/state.
 
-Topics
+Topics (relative names; the resolved ones at the root namespace)
   in   /gaze/command          active_vision_msgs/GazeCommand   (reliable, depth 10)
   in   /joint_states          sensor_msgs/JointState           (best effort: any publisher QoS)
   in   /tf, /tf_static        tf2_msgs/TFMessage               (vizzy_runtime.tf, latched static)
@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 from vizzy_sim_bridge.core import kinematics
@@ -63,79 +63,59 @@ GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 JointState = message('sensor_msgs/msg/JointState')
 
-COMMAND_TOPIC = '/gaze/command'
-STATE_TOPIC = '/gaze/state'
-JOINT_STATES_TOPIC = '/joint_states'
-JOINT_COMMANDS_TOPIC = '/vizzy/joint_commands'
+# Relative names: the node's namespace (or remapping) places them; logs print the resolved ones.
+COMMAND_TOPIC = 'gaze/command'
+STATE_TOPIC = 'gaze/state'
+JOINT_STATES_TOPIC = 'joint_states'
+JOINT_COMMANDS_TOPIC = 'vizzy/joint_commands'
 
 _VMAX = float(np.max(velocity_limits()))
 # A step of the clock between control ticks beyond this [s] (or backwards) is a jump, not a delay.
 _CLOCK_JUMP_S = 1.0
 
-# (name, default, description): the node declares exactly these.
-PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('control_rate_hz', 100.0,
-     f'Rate of joint position setpoints on {JOINT_COMMANDS_TOPIC} [Hz], in (0, 1000].'),
-    ('state_rate_hz', 30.0,
-     f'Rate of {STATE_TOPIC} [Hz], in (0, 1000]; a state also goes out after every command.'),
-    ('eye_pan_comfort_rad', 0.35,
-     'Neck/eye split: the eyes take a pan (version) up to this on their own, the neck pan the '
-     'rest [rad], in [0, 1.6].'),
-    ('eye_tilt_comfort_rad', 0.25,
-     'Neck/eye split: the eyes tilt up to this on their own, the neck tilt the rest [rad], '
-     'in [0, 1.6].'),
-    ('neck_share', 0.0,
-     'Neck/eye split: fraction of the comfortable part the neck takes as well, in [0, 1].'),
-    ('min_fixation_distance_m', 0.15,
-     'Nearest accepted fixation point, from the midpoint of the camera centres [m], in (0, 1000].'),
-    ('max_fixation_distance_m', 10.0,
-     'Farthest accepted fixation point, from the midpoint of the camera centres [m], in (0, 1000]; '
-     'also where a joint-target gaze with parallel axes is said to fixate.'),
-    ('saccade_min_duration_s', 0.05,
-     'Main sequence: duration of the smallest saccade [s], in [0, 2].'),
-    ('saccade_s_per_rad', 0.15,
-     'Main sequence: added duration per radian of the largest joint displacement [s/rad], '
-     'in [0, 10].'),
-    ('max_velocity_rad_s', _VMAX,
-     f'Peak joint velocity of a saccade [rad/s], in (0, {_VMAX:g}] (the kinematics velocity '
-     'limit).'),
-    ('pursuit_gain', 8.0,
-     'Smooth pursuit: velocity per radian of error [1/s], in (0, 1000].'),
-    ('pursuit_max_velocity_rad_s', 1.0,
-     f'Smooth pursuit: peak joint velocity [rad/s], in (0, {_VMAX:g}].'),
-    ('settle_tolerance_rad', 0.01,
-     'A saccade ends when every measured joint is this close to its target [rad], in (0, 1].'),
-    ('settle_timeout_s', 0.3,
-     'A saccade ends at the latest this long after its trajectory [s], in [0, 10].'),
+# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
+PARAMETERS: tuple[Param, ...] = (
+    Param('control_rate_hz', 100.0,
+          f'Rate of joint position setpoints on {JOINT_COMMANDS_TOPIC} [Hz], in (0, 1000].',
+          '(0, 1000]'),
+    Param('state_rate_hz', 30.0,
+          f'Rate of {STATE_TOPIC} [Hz], in (0, 1000]; a state also goes out after every '
+          'command.', '(0, 1000]'),
+    Param('eye_pan_comfort_rad', 0.35,
+          'Neck/eye split: the eyes take a pan (version) up to this on their own, the neck pan '
+          'the rest [rad], in [0, 1.6].', '[0, 1.6]'),
+    Param('eye_tilt_comfort_rad', 0.25,
+          'Neck/eye split: the eyes tilt up to this on their own, the neck tilt the rest '
+          '[rad], in [0, 1.6].', '[0, 1.6]'),
+    Param('neck_share', 0.0,
+          'Neck/eye split: fraction of the comfortable part the neck takes as well, in [0, 1].',
+          '[0, 1]'),
+    Param('min_fixation_distance_m', 0.15,
+          'Nearest accepted fixation point, from the midpoint of the camera centres [m], in '
+          '(0, 1000].', '(0, 1000]', constraints='below max_fixation_distance_m'),
+    Param('max_fixation_distance_m', 10.0,
+          'Farthest accepted fixation point, from the midpoint of the camera centres [m], in '
+          '(0, 1000]; also where a joint-target gaze with parallel axes is said to fixate.',
+          '(0, 1000]', constraints='above min_fixation_distance_m'),
+    Param('saccade_min_duration_s', 0.05,
+          'Main sequence: duration of the smallest saccade [s], in [0, 2].', '[0, 2]'),
+    Param('saccade_s_per_rad', 0.15,
+          'Main sequence: added duration per radian of the largest joint displacement '
+          '[s/rad], in [0, 10].', '[0, 10]'),
+    Param('max_velocity_rad_s', _VMAX,
+          f'Peak joint velocity of a saccade [rad/s], in (0, {_VMAX:g}] (the kinematics '
+          'velocity limit).', f'(0, {_VMAX!r}]'),
+    Param('pursuit_gain', 8.0,
+          'Smooth pursuit: velocity per radian of error [1/s], in (0, 1000].', '(0, 1000]'),
+    Param('pursuit_max_velocity_rad_s', 1.0,
+          f'Smooth pursuit: peak joint velocity [rad/s], in (0, {_VMAX:g}].', f'(0, {_VMAX!r}]'),
+    Param('settle_tolerance_rad', 0.01,
+          'A saccade ends when every measured joint is this close to its target [rad], in '
+          '(0, 1].', '(0, 1]'),
+    Param('settle_timeout_s', 0.3,
+          'A saccade ends at the latest this long after its trajectory [s], in [0, 10].',
+          '[0, 10]'),
 )
-
-_RANGES: dict[str, tuple[float, float, bool]] = {  # name: (lo, hi, lo excluded)
-    'control_rate_hz': (0.0, 1000.0, True),
-    'state_rate_hz': (0.0, 1000.0, True),
-    'eye_pan_comfort_rad': (0.0, 1.6, False),
-    'eye_tilt_comfort_rad': (0.0, 1.6, False),
-    'neck_share': (0.0, 1.0, False),
-    'min_fixation_distance_m': (0.0, 1000.0, True),
-    'max_fixation_distance_m': (0.0, 1000.0, True),
-    'saccade_min_duration_s': (0.0, 2.0, False),
-    'saccade_s_per_rad': (0.0, 10.0, False),
-    'max_velocity_rad_s': (0.0, _VMAX, True),
-    'pursuit_gain': (0.0, 1000.0, True),
-    'pursuit_max_velocity_rad_s': (0.0, _VMAX, True),
-    'settle_tolerance_rad': (0.0, 1.0, True),
-    'settle_timeout_s': (0.0, 10.0, False),
-}
-
-
-def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is."""
-    if name not in _RANGES:
-        return None
-    lo, hi, open_lo = _RANGES[name]
-    if not (isinstance(value, (int, float)) and not isinstance(value, bool)
-            and math.isfinite(value) and (lo < value if open_lo else lo <= value) and value <= hi):
-        return f'{name} must be in {"(" if open_lo else "["}{lo:g}, {hi:g}], got {value!r}'
-    return None
 
 
 def check_parameters(values: dict[str, Any]) -> str | None:
@@ -150,8 +130,7 @@ class GazeControllerNode(Node):
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__('gaze_controller', **node_kwargs)
-        self._p = declare_parameters(self, PARAMETERS, check_parameter,
-                                     check_all=check_parameters,
+        self._p = declare_parameters(self, PARAMETERS, check_all=check_parameters,
                                      on_change=self._on_parameters_changed)
         # Times are seconds since this epoch: floats near 1.8e9 s (the Unix time) resolve only
         # 0.24 us, enough to blur the velocity of a 10 ms step by 1e-5.
@@ -176,19 +155,22 @@ class GazeControllerNode(Node):
         self._tf_listener = TransformListener(self.tf_buffer, self)
         self._state_pub = self.create_publisher(GazeState, STATE_TOPIC, 10)
         self._command_pub = self.create_publisher(JointState, JOINT_COMMANDS_TOPIC, 10)
-        self.create_subscription(GazeCommand, COMMAND_TOPIC, guarded(
-            self, f'{COMMAND_TOPIC}: failed on a command', self._on_command), 10)
-        self.create_subscription(JointState, JOINT_STATES_TOPIC, guarded(
-            self, f'{JOINT_STATES_TOPIC}: skipped a message', self._on_joint_states),
-            qos_profile_sensor_data)
+        self._gaze_topic = self.resolve_topic_name(COMMAND_TOPIC)   # for log lines
+        self._gaze_sub = self.create_subscription(GazeCommand, COMMAND_TOPIC, guarded(
+            self, f'{self._gaze_topic}: failed on a command', self._on_command), 10)
+        self._joint_states_sub = self.create_subscription(JointState, JOINT_STATES_TOPIC, guarded(
+            self, f'{self.resolve_topic_name(JOINT_STATES_TOPIC)}: skipped a message',
+            self._on_joint_states), qos_profile_sensor_data)
         self._control_timer = self.create_timer(
             1.0 / self._p['control_rate_hz'],
             guarded(self, 'control step failed', self._on_control))
         self._state_timer = self.create_timer(
             1.0 / self._p['state_rate_hz'], guarded(self, 'state failed', self._publish_state))
         self.get_logger().info(
-            f'gaze controller: {COMMAND_TOPIC} -> {JOINT_COMMANDS_TOPIC} at '
-            f'{self._p["control_rate_hz"]:g} Hz, {STATE_TOPIC} at {self._p["state_rate_hz"]:g} Hz; '
+            f'gaze controller: {self._gaze_sub.topic_name} -> {self._command_pub.topic_name} at '
+            f'{self._p["control_rate_hz"]:g} Hz, {self._state_pub.topic_name} at '
+            f'{self._p["state_rate_hz"]:g} Hz (joint states from '
+            f'{self._joint_states_sub.topic_name}); '
             f'saccades up to {self._p["max_velocity_rad_s"]:g} rad/s')
 
     # --- inputs -----------------------------------------------------------------------------------
@@ -224,7 +206,7 @@ class GazeControllerNode(Node):
     def _reject(self, cmd: Any, error: GazeError) -> None:
         self._status, self._status_message = error.status, str(error)
         self.get_logger().warning(
-            f'{COMMAND_TOPIC}: rejected a command from {cmd.source or "<no source>"!r}: '
+            f'{self._gaze_topic}: rejected a command from {cmd.source or "<no source>"!r}: '
             f'{error.status.name}: {error}', throttle_duration_sec=1.0)
 
     def _on_command(self, cmd: Any) -> None:
@@ -277,7 +259,7 @@ class GazeControllerNode(Node):
         lost = arbitrate(self._claim, source, priority, now)
         if lost is not None:
             self._status, self._status_message = GazeStatus.PREEMPTED, lost
-            self.get_logger().debug(f'{COMMAND_TOPIC}: {lost}')
+            self.get_logger().debug(f'{self._gaze_topic}: {lost}')
             return
         previous = self._claim
         self._start_motion(target, cmd.motion == GazeCommand.MOTION_SACCADE, now)
@@ -288,7 +270,7 @@ class GazeControllerNode(Node):
         if previous is not None and previous.source != source and previous.held(now):
             notes.append(f'preempted {previous.source!r} (priority {previous.priority})')
         for warning in warnings:
-            self.get_logger().warning(f'{COMMAND_TOPIC}: from {source!r}: {warning}',
+            self.get_logger().warning(f'{self._gaze_topic}: from {source!r}: {warning}',
                                       throttle_duration_sec=1.0)
         self._status, self._status_message = GazeStatus.OK, '; '.join(notes)
 

@@ -3,8 +3,11 @@
 Physics runs at 500 Hz in its own thread, keeping sim time with wall time; this node publishes
 that sim time on /clock (it runs on wall time itself) and stamps everything with it.
 
+Topic names are relative (below: resolved at the root namespace), so `-r __ns:=/head2` moves them
+all; cameras and RGB-D publish reliable keep-last 5 as drivers do (REP 2003), so any subscriber
+matches, best effort or reliable.
 Publishes (frames and QoS in docs/vizzy_sim_bridge.md):
-  /vizzy/{left,right}/image_raw (rgb8) + camera_info       every 1/rate_hz (sensor data QoS)
+  /vizzy/{left,right}/image_raw (rgb8) + camera_info       every 1/rate_hz
   /vizzy/rgbd/image_raw (rgb8), /vizzy/rgbd/depth/image_raw (32FC1 [m], NaN invalid),
   /vizzy/rgbd/points (organized x y z rgb), /vizzy/rgbd/camera_info   every 1/rgbd_rate_hz
   /joint_states, /tf                                       every 1/joint_state_rate_hz, and at
@@ -34,10 +37,12 @@ import mujoco
 import numpy as np
 
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
-from vizzy_runtime.node_tools import declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.node_tools import (Param, declare_parameters, guarded, main_for,
+                                      publish_from_thread, replace_timer)
 from vizzy_runtime.ros import (
-    USING_REAL_ROS, Node, Parameter, SetParametersResult, message, qos_profile_latched,
-    qos_profile_sensor_data)
+    USING_REAL_ROS, ExternalShutdownException, Node, Parameter, QoSProfile, SetParametersResult, message,
+    qos_profile_latched)
+from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 from vizzy_sim_bridge.core.camera import camera_matrix, project, projection_matrix
 from vizzy_sim_bridge.core.kinematics import (
     BASELINE, CAMERA_FRAMES, JOINT_LIMITS, JOINT_NAMES, RGBD_FRAME, WAIST_HEIGHT, Transform,
@@ -61,82 +66,82 @@ Track = message('active_vision_msgs/msg/Track')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
 
-COMMAND_TOPIC = '/vizzy/joint_commands'
 EYES = ('left', 'right')
+# Relative names: the node's namespace (or remapping) places them; logs print the resolved ones.
+COMMAND_TOPIC = 'vizzy/joint_commands'
+IMAGE_TOPICS = {e: f'vizzy/{e}/image_raw' for e in EYES}
+INFO_TOPICS = {e: f'vizzy/{e}/camera_info' for e in EYES}
+RGBD_IMAGE_TOPIC = 'vizzy/rgbd/image_raw'
+RGBD_DEPTH_TOPIC = 'vizzy/rgbd/depth/image_raw'
+RGBD_POINTS_TOPIC = 'vizzy/rgbd/points'
+RGBD_INFO_TOPIC = 'vizzy/rgbd/camera_info'
+JOINT_STATES_TOPIC = 'joint_states'
+CLOCK_TOPIC = 'clock'          # nodes with use_sim_time follow /clock: a namespaced graph remaps it
+GROUND_TRUTH_TOPIC = 'sim/ground_truth'
+# Drivers publish sensor data reliable (REP 2003): best-effort and reliable subscribers both match.
+SENSOR_QOS = QoSProfile(depth=5)
+# destroy_node() waits at most this for the render thread's frame in flight (one stereo pair or
+# RGB-D frame, well under a second); whatever the thread publishes after it is dropped.
+RENDER_JOIN_TIMEOUT_S = 2.0
 
-# (name, default, description): the node declares exactly these.
-PARAMETERS: tuple[tuple[str, Any, str], ...] = (
-    ('scene', 'tabletop', 'Scene: ' + ', '.join(SCENE_NAMES) + ' (read-only).'),
-    ('seed', 0, 'Seed of the scene layout and of the depth noise, >= 0 (read-only).'),
-    ('pedestrian_count', 4, 'Walkers in the pedestrians scene, in [1, 20] (read-only).'),
-    ('rate_hz', 15.0, 'Rate of the stereo images and their camera_info [Hz], in (0, 60].'),
-    ('rgbd_rate_hz', 5.0, 'Rate of the RGB-D image, depth, points and camera_info [Hz], in '
-     '[0, 30]; 0 switches the RGB-D sensor off.'),
-    ('joint_state_rate_hz', 100.0, 'Rate of /joint_states and /tf [Hz], in (0, 500].'),
-    ('width', 640, 'Eye camera image width [px] (read-only).'),
-    ('height', 480, 'Eye camera image height [px] (read-only).'),
-    ('horizontal_fov_deg', 85.4, 'Horizontal field of view of each eye camera [deg] (read-only).'),
-    ('rgbd_width', 640, 'RGB-D image width [px] (read-only).'),
-    ('rgbd_height', 480, 'RGB-D image height [px] (read-only).'),
-    ('rgbd_horizontal_fov_deg', 58.0, 'Horizontal field of view of the RGB-D sensor [deg] '
-     '(read-only).'),
-    ('depth_noise_coefficient', 1.425e-3, 'Depth noise sigma_z = c z^2: c [1/m], in [0, 0.05]; '
-     '0 = noise-free depth (Khoshelham & Elberink 2012: 1.425e-3).'),
-    ('rgbd_min_range_m', 0.5, 'Nearest valid depth [m], in [0, 10); nearer is NaN.'),
-    ('rgbd_max_range_m', 3.5, 'Farthest valid depth [m], in (0, 50]; farther is NaN.'),
-    ('initial_joint_positions', [0.0, 0.0, 0.0, 0.0, 0.0],
-     'Joint targets at start [rad], in the order ' + ', '.join(JOINT_NAMES) +
-     '; clamped into the joint limits (read-only).'),
-    ('render_backend', 'auto', 'OpenGL for rendering: auto (EGL, else OSMesa), egl or osmesa '
-     '(read-only).'),
-    ('ground_truth_rate_hz', 1.0, 'Rate of republishing /sim/ground_truth/objects [Hz], in '
-     '(0, 100].'),
-    ('publish_clock', True,
-     'Publish /clock (simulated time starting at 0) and stamp messages with it (read-only). '
-     'The sim itself must run with use_sim_time false.'),
-    ('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in (0, 1000] (read-only).'),
+# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
+PARAMETERS: tuple[Param, ...] = (
+    Param('scene', 'tabletop', 'Scene: ' + ', '.join(SCENE_NAMES) + ' (read-only).',
+          choices=tuple(SCENE_NAMES), read_only=True),
+    Param('seed', 0, 'Seed of the scene layout and of the depth noise, >= 0 (read-only).',
+          '[0, inf)', read_only=True),
+    Param('pedestrian_count', 4, 'Walkers in the pedestrians scene, in [1, 20] (read-only).',
+          '[1, 20]', read_only=True),
+    Param('rate_hz', 15.0, 'Rate of the stereo images and their camera_info [Hz], in (0, 60].',
+          '(0, 60]'),
+    Param('rgbd_rate_hz', 5.0, 'Rate of the RGB-D image, depth, points and camera_info [Hz], '
+          'in [0, 30]; 0 switches the RGB-D sensor off.', '[0, 30]'),
+    Param('joint_state_rate_hz', 100.0, 'Rate of /joint_states and /tf [Hz], in (0, 500].',
+          '(0, 500]'),
+    Param('width', 640, 'Eye camera image width [px] (read-only).', '[16, 4096]',
+          read_only=True),
+    Param('height', 480, 'Eye camera image height [px] (read-only).', '[16, 4096]',
+          read_only=True),
+    Param('horizontal_fov_deg', 85.4, 'Horizontal field of view of each eye camera [deg] '
+          '(read-only).', '[1, 170]', read_only=True),
+    Param('rgbd_width', 640, 'RGB-D image width [px] (read-only).', '[16, 4096]',
+          read_only=True),
+    Param('rgbd_height', 480, 'RGB-D image height [px] (read-only).', '[16, 4096]',
+          read_only=True),
+    Param('rgbd_horizontal_fov_deg', 58.0, 'Horizontal field of view of the RGB-D sensor [deg] '
+          '(read-only).', '[1, 170]', read_only=True),
+    Param('depth_noise_coefficient', 1.425e-3, 'Depth noise sigma_z = c z^2: c [1/m], in '
+          '[0, 0.05]; 0 = noise-free depth (Khoshelham & Elberink 2012: 1.425e-3).',
+          '[0, 0.05]'),
+    Param('rgbd_min_range_m', 0.5, 'Nearest valid depth [m], in [0, 10); nearer is NaN.',
+          '[0, 10)', constraints='below rgbd_max_range_m'),
+    Param('rgbd_max_range_m', 3.5, 'Farthest valid depth [m], in (0, 50]; farther is NaN.',
+          '(0, 50]', constraints='above rgbd_min_range_m'),
+    Param('initial_joint_positions', [0.0, 0.0, 0.0, 0.0, 0.0],
+          'Joint targets at start [rad], in the order ' + ', '.join(JOINT_NAMES) +
+          '; clamped into the joint limits (read-only).',
+          constraints=f'{len(JOINT_NAMES)} finite values', read_only=True),
+    Param('render_backend', 'auto', 'OpenGL for rendering: auto (EGL, else OSMesa), egl or '
+          'osmesa (read-only).', choices=('auto', 'egl', 'osmesa'), read_only=True),
+    Param('ground_truth_rate_hz', 1.0, 'Rate of republishing /sim/ground_truth/objects [Hz], '
+          'in (0, 100].', '(0, 100]'),
+    Param('publish_clock', True,
+          'Publish /clock (simulated time starting at 0) and stamp messages with it '
+          '(read-only). The sim itself must run with use_sim_time false.', read_only=True),
+    Param('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in (0, 1000] (read-only).',
+          '(0, 1000]', read_only=True),
 )
-READ_ONLY = frozenset({'scene', 'seed', 'pedestrian_count', 'width', 'height',
-                       'horizontal_fov_deg', 'rgbd_width', 'rgbd_height',
-                       'rgbd_horizontal_fov_deg', 'initial_joint_positions', 'render_backend',
-                       'publish_clock', 'clock_rate_hz'})
+READ_ONLY = frozenset(p.name for p in PARAMETERS if p.read_only)
 
 
 def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is."""
-    if name == 'scene' and value not in SCENE_NAMES:
-        return f'scene must be one of {", ".join(SCENE_NAMES)}, got {value!r}'
-    if name == 'seed' and not 0 <= value <= 2 ** 63 - 1:
-        return f'seed must be >= 0, got {value}'
-    if name == 'pedestrian_count' and not 1 <= value <= 20:
-        return f'pedestrian_count must be in [1, 20], got {value}'
-    if name == 'rate_hz' and not 0.0 < value <= 60.0:
-        return f'rate_hz must be in (0, 60], got {value}'
-    if name == 'rgbd_rate_hz' and not 0.0 <= value <= 30.0:
-        return f'rgbd_rate_hz must be in [0, 30], got {value}'
-    if name == 'joint_state_rate_hz' and not 0.0 < value <= 500.0:
-        return f'joint_state_rate_hz must be in (0, 500], got {value}'
-    if name in ('width', 'height', 'rgbd_width', 'rgbd_height') and not 16 <= value <= 4096:
-        return f'{name} must be in [16, 4096] px, got {value}'
-    if name in ('horizontal_fov_deg', 'rgbd_horizontal_fov_deg') and not 1.0 <= value <= 170.0:
-        return f'{name} must be in [1, 170], got {value}'
-    if name == 'depth_noise_coefficient' and not 0.0 <= value <= 0.05:
-        return f'depth_noise_coefficient must be in [0, 0.05], got {value}'
-    if name == 'rgbd_min_range_m' and not 0.0 <= value < 10.0:
-        return f'rgbd_min_range_m must be in [0, 10) m, got {value}'
-    if name == 'rgbd_max_range_m' and not 0.0 < value <= 50.0:
-        return f'rgbd_max_range_m must be in (0, 50] m, got {value}'
+    """Why value is not acceptable for parameter name, or None if it is: what the table's
+    ranges and choices cannot express."""
     if name == 'initial_joint_positions':
         if len(value) != len(JOINT_NAMES):
             return f'initial_joint_positions needs {len(JOINT_NAMES)} values, got {len(value)}'
         if not all(math.isfinite(v) for v in value):
             return f'initial_joint_positions must be finite, got {list(value)}'
-    if name == 'render_backend' and value not in ('auto', 'egl', 'osmesa'):
-        return f'render_backend must be auto, egl or osmesa, got {value!r}'
-    if name == 'ground_truth_rate_hz' and not 0.0 < value <= 100.0:
-        return f'ground_truth_rate_hz must be in (0, 100], got {value}'
-    if name == 'clock_rate_hz' and not 0.0 < value <= 1000.0:
-        return f'clock_rate_hz must be in (0, 1000], got {value}'
     return None
 
 
@@ -237,11 +242,11 @@ class SimNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """kwargs go to Node (context, parameter_overrides, cli_args, ...)."""
         super().__init__('sim', **kwargs)
-        p = declare_parameters(self, PARAMETERS, check_parameter, read_only=READ_ONLY,
-                               check_all=check_parameters, on_change=self._on_parameters_changed)
+        p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_parameters,
+                               on_change=self._on_parameters_changed)
         self._p = p
         self._publish_clock = bool(p['publish_clock'])
-        # Added after declare_parameters' callback, so it runs first (see there).
+        # Any order with declare_parameters' callbacks: the table applies changes post-set.
         self.add_on_set_parameters_callback(self._refuse_sim_time)
         if self._publish_clock and self.get_parameter('use_sim_time').value:
             # Following the /clock we publish ourselves would stop every timer at time 0.
@@ -281,31 +286,32 @@ class SimNode(Node):
         self._stop = threading.Event()
         self._render_thread: threading.Thread | None = None
 
-        sensor = qos_profile_sensor_data
-        self._image_pubs = {e: self.create_publisher(Image, f'/vizzy/{e}/image_raw', sensor)
+        sensor = SENSOR_QOS
+        self._image_pubs = {e: self.create_publisher(Image, IMAGE_TOPICS[e], sensor)
                             for e in EYES}
-        self._info_pubs = {e: self.create_publisher(CameraInfo, f'/vizzy/{e}/camera_info', sensor)
+        self._info_pubs = {e: self.create_publisher(CameraInfo, INFO_TOPICS[e], sensor)
                            for e in EYES}
-        self._rgbd_image_pub = self.create_publisher(Image, '/vizzy/rgbd/image_raw', sensor)
-        self._rgbd_depth_pub = self.create_publisher(Image, '/vizzy/rgbd/depth/image_raw', sensor)
+        self._rgbd_image_pub = self.create_publisher(Image, RGBD_IMAGE_TOPIC, sensor)
+        self._rgbd_depth_pub = self.create_publisher(Image, RGBD_DEPTH_TOPIC, sensor)
         self._rgbd_points_pub = self.create_publisher(message('sensor_msgs/msg/PointCloud2'),
-                                                      '/vizzy/rgbd/points', sensor)
-        self._rgbd_info_pub = self.create_publisher(CameraInfo, '/vizzy/rgbd/camera_info', sensor)
-        self._joint_pub = self.create_publisher(JointState, '/joint_states', 10)
-        self._tf_pub = self.create_publisher(TFMessage, '/tf', 100)
-        self._tf_static_pub = self.create_publisher(TFMessage, '/tf_static', qos_profile_latched)
-        self._clock_pub = (self.create_publisher(Clock, '/clock', 10)
+                                                      RGBD_POINTS_TOPIC, sensor)
+        self._rgbd_info_pub = self.create_publisher(CameraInfo, RGBD_INFO_TOPIC, sensor)
+        self._joint_pub = self.create_publisher(JointState, JOINT_STATES_TOPIC, 10)
+        self._tf_pub = self.create_publisher(TFMessage, TF_TOPIC, 100)
+        self._tf_static_pub = self.create_publisher(TFMessage, TF_STATIC_TOPIC, qos_profile_latched)
+        self._clock_pub = (self.create_publisher(Clock, CLOCK_TOPIC, 10)
                            if self._publish_clock else None)
-        self._gt_objects_pub = self.create_publisher(MarkerArray, '/sim/ground_truth/objects',
-                                                     qos_profile_latched)
+        self._gt_objects_pub = self.create_publisher(
+            MarkerArray, f'{GROUND_TRUTH_TOPIC}/objects', qos_profile_latched)
         self._crowd = self._scene.crowd is not None
         if self._crowd:
             self._gt_people_pub = self.create_publisher(
-                MarkerArray, '/sim/ground_truth/pedestrians', 10)
+                MarkerArray, f'{GROUND_TRUTH_TOPIC}/pedestrians', 10)
             self._gt_boxes_pubs = {e: self.create_publisher(
-                TrackArray, f'/sim/ground_truth/{e}/pedestrians', 10) for e in EYES}
-        self.create_subscription(JointState, COMMAND_TOPIC, guarded(
-            self, f'{COMMAND_TOPIC}: failed on a command', self._on_joint_command), 10)
+                TrackArray, f'{GROUND_TRUTH_TOPIC}/{e}/pedestrians', 10) for e in EYES}
+        self._command_topic = self.resolve_topic_name(COMMAND_TOPIC)   # for log lines
+        self._command_sub = self.create_subscription(JointState, COMMAND_TOPIC, guarded(
+            self, f'{self._command_topic}: failed on a command', self._on_joint_command), 10)
 
         now = self._now(self._sim.time)
         world = Transform('world', 'base_link', (0.0, 0.0, WAIST_HEIGHT), (0.0, 0.0, 0.0, 1.0))
@@ -320,12 +326,18 @@ class SimNode(Node):
         self._gt_timer = self.create_timer(1.0 / float(p['ground_truth_rate_hz']), guarded(
             self, 'ground truth publishing failed', self._publish_ground_truth))
         if self._clock_pub is not None:
-            self._clock_timer = self.create_timer(1.0 / float(p['clock_rate_hz']), self._on_clock)
+            self._clock_timer = self.create_timer(1.0 / float(p['clock_rate_hz']), guarded(
+                self, '/clock publishing failed', self._on_clock))
         log.info(
             f'scene {p["scene"]} (seed {p["seed"]}): {self._scene.description}; '
             f'{eye.width}x{eye.height} stereo at {p["rate_hz"]} Hz, RGB-D at {p["rgbd_rate_hz"]} '
             f'Hz, physics at {1.0 / self._sim.dt:.0f} Hz, rendering with '
-            f'{self._backend} in its own thread; joint targets on {COMMAND_TOPIC}')
+            f'{self._backend} in its own thread; cameras on '
+            f'{", ".join(self._image_pubs[e].topic_name for e in EYES)} (+ camera_info), RGB-D on '
+            f'{self._rgbd_points_pub.topic_name}, {self._joint_pub.topic_name}, '
+            f'{self._tf_pub.topic_name}'
+            f'{", " + self._clock_pub.topic_name if self._clock_pub is not None else ""}; '
+            f'joint targets on {self._command_sub.topic_name}')
 
     # ------------------------------------------------------------------ helpers
     def _now(self, t: float) -> Any:
@@ -379,8 +391,9 @@ class SimNode(Node):
         joints.position = _float_seq(position)
         joints.velocity = _float_seq(velocity)
         joints.effort = _float_seq(effort)
-        self._joint_pub.publish(joints)
-        self._tf_pub.publish(TFMessage(transforms=self._transforms(
+        # from the joint timer or the render thread (see _render_loop)
+        publish_from_thread(self, self._joint_pub, joints)
+        publish_from_thread(self, self._tf_pub, TFMessage(transforms=self._transforms(
             joint_transforms(position.tolist()), stamp)))
 
     def _snapshot(self) -> tuple[float, np.ndarray]:
@@ -431,6 +444,8 @@ class SimNode(Node):
             raise failure[0]
 
     def _render_loop(self, renderer: CameraRenderer) -> None:
+        """Renders and publishes (publish_from_thread) until destroy_node() sets _stop, or
+        until the context goes away under it (Ctrl-C under real rclpy): then it ends quietly."""
         self._renderer = renderer
         due = {'stereo': time.monotonic(), 'rgbd': time.monotonic()}
         work = {'stereo': self._on_render, 'rgbd': self._on_rgbd}
@@ -448,6 +463,8 @@ class SimNode(Node):
                     due[key] = due[key] + period if now - due[key] < period else now + period
                     try:
                         work[key]()
+                    except ExternalShutdownException:
+                        return
                     except Exception as exc:  # one bad frame never stops the rendering
                         if now - last_error[key] > 5.0:
                             last_error[key] = now
@@ -464,10 +481,10 @@ class SimNode(Node):
             rgb, _ = self._renderer.render(self._render_data, self._cam_ids[e],
                                            width=self._eye.width, height=self._eye.height)
             header = Header(stamp=stamp, frame_id=CAMERA_FRAMES[e])
-            self._image_pubs[e].publish(numpy_to_image(rgb, 'rgb8', header))
+            publish_from_thread(self, self._image_pubs[e], numpy_to_image(rgb, 'rgb8', header))
             info = self._info[e]
             info.header.stamp = stamp
-            self._info_pubs[e].publish(info)
+            publish_from_thread(self, self._info_pubs[e], info)
         if self._crowd:
             self._publish_pedestrians(q, stamp)
 
@@ -480,13 +497,13 @@ class SimNode(Node):
         z = noisy_depth(depth, self._noise_rng if coeff > 0 else None, coeff,
                         float(self._p['rgbd_min_range_m']), float(self._p['rgbd_max_range_m']))
         header = Header(stamp=stamp, frame_id=RGBD_FRAME)
-        self._rgbd_image_pub.publish(numpy_to_image(rgb, 'rgb8', header))
-        self._rgbd_depth_pub.publish(numpy_to_image(z, '32FC1', header))
-        self._rgbd_points_pub.publish(array_to_pointcloud2(self._projector.cloud(z, rgb), header,
-                                                           is_dense=False))
+        publish_from_thread(self, self._rgbd_image_pub, numpy_to_image(rgb, 'rgb8', header))
+        publish_from_thread(self, self._rgbd_depth_pub, numpy_to_image(z, '32FC1', header))
+        publish_from_thread(self, self._rgbd_points_pub, array_to_pointcloud2(
+            self._projector.cloud(z, rgb), header, is_dense=False))
         info = self._info['rgbd']
         info.header.stamp = stamp
-        self._rgbd_info_pub.publish(info)
+        publish_from_thread(self, self._rgbd_info_pub, info)
 
     def _publish_ground_truth(self) -> None:
         self._gt_objects_pub.publish(object_markers(self._scene.objects,
@@ -504,7 +521,7 @@ class SimNode(Node):
             m.scale.x, m.scale.y, m.scale.z = box['size']
             m.color.r, m.color.g, m.color.b, m.color.a = 0.2, 0.8, 0.2, 0.5
             markers.append(m)
-        self._gt_people_pub.publish(MarkerArray(markers=markers))
+        publish_from_thread(self, self._gt_people_pub, MarkerArray(markers=markers))
         poses = frames_in_base(q.tolist())
         for e in EYES:
             tracks = []
@@ -522,7 +539,7 @@ class SimNode(Node):
                                     scale=1.0))
             msg = TrackArray(tracks=tracks)
             msg.header.stamp, msg.header.frame_id = stamp, CAMERA_FRAMES[e]
-            self._gt_boxes_pubs[e].publish(msg)
+            publish_from_thread(self, self._gt_boxes_pubs[e], msg)
 
     # ------------------------------------------------------------------ commands
     def _on_joint_command(self, msg: Any) -> None:
@@ -531,27 +548,27 @@ class SimNode(Node):
         velocities = [float(v) for v in msg.velocity]
         log = self.get_logger()
         if not names:
-            log.error(f'{COMMAND_TOPIC}: rejected: no joint names')
+            log.error(f'{self._command_topic}: rejected: no joint names')
             return
         if len(names) != len(positions):
-            log.error(f'{COMMAND_TOPIC}: rejected: {len(names)} names but {len(positions)} '
+            log.error(f'{self._command_topic}: rejected: {len(names)} names but {len(positions)} '
                       'positions')
             return
         unknown = [n for n in names if n not in JOINT_LIMITS]
         if unknown:
-            log.error(f'{COMMAND_TOPIC}: rejected: unknown joints {unknown}; known: '
+            log.error(f'{self._command_topic}: rejected: unknown joints {unknown}; known: '
                       f'{", ".join(JOINT_NAMES)}')
             return
         if len(set(names)) != len(names):
-            log.error(f'{COMMAND_TOPIC}: rejected: repeated joint names in {names}')
+            log.error(f'{self._command_topic}: rejected: repeated joint names in {names}')
             return
         bad = [f'{n}={v}' for n, v in zip(names, positions) if not math.isfinite(v)]
         if bad:
-            log.error(f'{COMMAND_TOPIC}: rejected: non-finite targets {bad}')
+            log.error(f'{self._command_topic}: rejected: non-finite targets {bad}')
             return
         speeds = dict(zip(names, velocities)) if len(velocities) == len(names) else None
         for note in self._sim.set_targets(dict(zip(names, positions)), speeds):
-            self._warn_throttled(note.split()[0], f'{COMMAND_TOPIC}: {note}')
+            self._warn_throttled(note.split()[0], f'{self._command_topic}: {note}')
 
     # ------------------------------------------------------------------ parameters, shutdown
     def _refuse_sim_time(self, params: list[Any]) -> Any:
@@ -578,8 +595,8 @@ class SimNode(Node):
         if stop is not None:
             stop.set()
         thread = getattr(self, '_render_thread', None)
-        if thread is not None:
-            thread.join(timeout=10.0)
+        if thread is not None:  # one frame in flight at most; a later publish is dropped
+            thread.join(timeout=RENDER_JOIN_TIMEOUT_S)
         sim = getattr(self, '_sim', None)
         if sim is not None:
             sim.stop()

@@ -11,28 +11,49 @@ from .executors import Executor, SingleThreadedExecutor
 from .node import Node
 
 _global_executor: Executor | None = None
+# The handler init() found for each signal it took over (rclpy's handler chains to it too).
+_previous_handlers: dict[int, Any] = {}
 
 
 def _on_signal(signum: int, frame: Any) -> None:
-    """SIGINT/SIGTERM, like rclpy's handler: shut the context down so spin returns between
-    callbacks. A KeyboardInterrupt raised at an arbitrary point (inside a callback, a C call or
-    the clean-up itself) could otherwise kill the process without its clean-up. A second signal
-    while the first is being honoured raises KeyboardInterrupt, for a node that hangs."""
+    """SIGINT/SIGTERM, like rclpy's handler: shut the context down (ok() turns False and
+    publishing fails, as with rcl) so spin returns between callbacks, then call the handler that
+    was installed before init() if it was a Python function, as rclpy chains to it.
+
+    Where that was Python's default (or nothing), this runtime deliberately raises no
+    KeyboardInterrupt for the first signal, where rclpy's chaining to Python's default handler
+    does: raised at an arbitrary point (inside a callback, a C call or the clean-up itself) it
+    could kill the process without its clean-up. A further signal once the context is down
+    raises KeyboardInterrupt, for a node that hangs."""
     context = get_default_context()
-    if context.ok():
+    was_ok = context.ok()
+    if was_ok:
         context.request_shutdown()
-    else:
+    previous = _previous_handlers.get(signum)
+    if callable(previous) and previous is not signal.default_int_handler:
+        previous(signum, frame)
+    elif not was_ok:
         raise KeyboardInterrupt
 
 
 def init(*, args: list[str] | None = None, context: Context | None = None,
-         domain_id: int | None = None, **_ignored: Any) -> None:
-    """rclpy.init: parse --ros-args (from sys.argv when args is None); SIGINT and SIGTERM end spin."""
+         domain_id: int | None = None, signal_handler_options: int | None = None,
+         **_ignored: Any) -> None:
+    """rclpy.init: parse --ros-args (from sys.argv when args is None); SIGINT and SIGTERM shut
+    the context down and end spin (see _on_signal), whatever handler was there before (even
+    SIG_IGN), as rclpy's. signal_handler_options: rclpy's SignalHandlerOptions as an int (0 none,
+    1 SIGINT, 2 SIGTERM, 3 both); by default both for the default context, none otherwise."""
     import sys
     (context or get_default_context()).init(sys.argv if args is None else args, domain_id)
+    if signal_handler_options is None:
+        signal_handler_options = 3 if context in (None, get_default_context()) else 0
     if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            if signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler, None):
+        for bit, sig in ((1, signal.SIGINT), (2, signal.SIGTERM)):
+            if not int(signal_handler_options) & bit:
+                continue
+            current = signal.getsignal(sig)
+            if current is not _on_signal:
+                _previous_handlers[sig] = current
                 signal.signal(sig, _on_signal)
 
 

@@ -32,6 +32,7 @@ class RosArguments:
     # (node pattern, parameter name, value); pattern '/**' or a node name / fully qualified name
     params: list[tuple[str, str, Any]] = field(default_factory=list)
     log_level: str | None = None
+    rosout_logs: bool = True   # --disable-rosout-logs: no node of the process publishes /rosout
     unparsed: list[str] = field(default_factory=list)
 
     def node_name(self, node: str) -> str:
@@ -157,8 +158,10 @@ def parse(argv: list[str] | None) -> RosArguments:
                 result.params.extend(load_params_file(value))
             elif arg == '--log-level':
                 result.log_level = value.split(':=')[-1].lower()
-        elif arg in ('--enable-rosout-logs', '--disable-rosout-logs', '--enable-stdout-logs',
-                     '--disable-stdout-logs', '--enable-external-lib-logs', '--disable-external-lib-logs'):
+        elif arg in ('--enable-rosout-logs', '--disable-rosout-logs'):
+            result.rosout_logs = arg == '--enable-rosout-logs'
+        elif arg in ('--enable-stdout-logs', '--disable-stdout-logs', '--enable-external-lib-logs',
+                     '--disable-external-lib-logs'):
             pass
         else:
             raise RosArgumentError(f'unknown --ros-args argument {arg!r}')

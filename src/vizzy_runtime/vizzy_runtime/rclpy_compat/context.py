@@ -61,7 +61,13 @@ class Context:
             self._ok = False
             callbacks, self._on_shutdown = self._on_shutdown, []
         for node in list(self.nodes):
-            node.destroy_node()
+            try:
+                node.destroy_node()
+            except Exception as err:  # noqa: BLE001 - e.g. a node whose __init__ failed half-way
+                # (rclpy itself destroys no node at shutdown): free what the base class made
+                from .node import Node
+                node.get_logger().debug(f'destroy_node at shutdown: {type(err).__name__}: {err}')
+                Node.destroy_node(node)
         for cb in callbacks:
             cb()
         self.notify()

@@ -298,6 +298,15 @@ def snapshot(timeout_sec: float = 0.0) -> list[NodeInfo]:
     return graph.snapshot()
 
 
+def announced_participants() -> set[bytes]:
+    """GIDs of the live participants whose ros_discovery_info sample this process has received
+    (nodes or not): with the DDS participants seen, what tells a CLI it has heard everyone."""
+    graph = _get()
+    graph.refresh()
+    with graph._cache_lock:
+        return set(graph._remote) & graph._alive
+
+
 def node_names_and_namespaces(timeout_sec: float = 0.0) -> list[NodeName]:
     """Every node of the graph as NodeName(namespace, name), sorted and without duplicates.
 
@@ -311,6 +320,6 @@ def node_names_and_namespaces(timeout_sec: float = 0.0) -> list[NodeName]:
     return sorted({NodeName(n.namespace, n.name) for n in snapshot(timeout_sec)})
 
 
-__all__ = ['ENCLAVE_USER_DATA', 'NodeInfo', 'NodeName', 'TOPIC_NAME', 'TYPENAME', 'build_message',
-           'node_changed', 'node_created', 'node_destroyed', 'node_names_and_namespaces',
+__all__ = ['ENCLAVE_USER_DATA', 'NodeInfo', 'NodeName', 'TOPIC_NAME', 'TYPENAME',
+           'announced_participants', 'build_message', 'node_changed', 'node_created', 'node_destroyed', 'node_names_and_namespaces',
            'parse_message', 'reader_qos', 'set_extra_endpoints', 'snapshot', 'writer_qos']

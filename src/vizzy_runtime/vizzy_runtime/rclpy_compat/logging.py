@@ -1,12 +1,14 @@
-"""rclpy logging subset: RcutilsLogger-like loggers printing in ROS 2's console format."""
+"""rclpy logging subset: RcutilsLogger-like loggers printing in ROS 2's console format, and
+sending each record to /rosout through the node whose logger it is (see add_rosout_sink)."""
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
 from enum import IntEnum
-from typing import Any
+from typing import Any, Callable
 
 
 class LoggingSeverity(IntEnum):
@@ -24,6 +26,32 @@ _LEVEL_NAMES = {'debug': LoggingSeverity.DEBUG, 'info': LoggingSeverity.INFO,
 _default_level = LoggingSeverity.INFO
 _lock = threading.Lock()
 
+# rcl's rosout output handler: a record of logger `name` (or of a child logger made from it with
+# get_child) is also handed to the sink registered under `name`, the node that owns that logger,
+# which publishes it as rcl_interfaces/msg/Log on /rosout. sink(stamp_ns, level, name, msg,
+# file, function, line). Node registers one unless enable_rosout=False.
+RosoutSink = Callable[[int, int, str, str, str, str, int], None]
+_rosout_sinks: dict[str, RosoutSink] = {}
+_in_sink = threading.local()   # a record logged while one is being sent is not sent (no loops)
+_THIS_FILE = os.path.normcase(os.path.abspath(__file__))
+
+
+def add_rosout_sink(name: str, sink: RosoutSink) -> None:
+    _rosout_sinks[name] = sink
+
+
+def remove_rosout_sink(name: str, sink: RosoutSink) -> None:
+    if _rosout_sinks.get(name) is sink:
+        del _rosout_sinks[name]
+
+
+def _caller() -> tuple[str, str, int]:
+    """(file, function, line) of the first frame outside this module, as rclpy's CallerId."""
+    frame = sys._getframe(1)
+    while frame.f_back is not None and os.path.normcase(frame.f_code.co_filename) == _THIS_FILE:
+        frame = frame.f_back
+    return os.path.abspath(frame.f_code.co_filename), frame.f_code.co_name, frame.f_lineno
+
 
 def set_default_level(level: str | int) -> None:
     global _default_level
@@ -33,12 +61,24 @@ def set_default_level(level: str | int) -> None:
 class RcutilsLogger:
     def __init__(self, name: str = '') -> None:
         self.name = name
+        self._parent: RcutilsLogger | None = None   # set by get_child: /rosout goes through it
         self._level: LoggingSeverity | None = None
         self._once: set[tuple[str, int]] = set()
         self._last: dict[tuple[str, int], float] = {}
 
     def get_child(self, name: str) -> 'RcutilsLogger':
-        return RcutilsLogger(f'{self.name}.{name}' if self.name else name)
+        child = RcutilsLogger(f'{self.name}.{name}' if self.name else name)
+        child._parent = self if self.name else None
+        return child
+
+    def _rosout_sink(self) -> RosoutSink | None:
+        logger: RcutilsLogger | None = self
+        while logger is not None:
+            sink = _rosout_sinks.get(logger.name)
+            if sink is not None:
+                return sink
+            logger = logger._parent
+        return None
 
     def set_level(self, level: LoggingSeverity | int) -> None:
         self._level = LoggingSeverity(level)
@@ -70,11 +110,21 @@ class RcutilsLogger:
             if throttle_duration_sec and last is not None and now - last < throttle_duration_sec:
                 return False
             self._last[key] = now
-        stamp = time.time()
-        line = f'[{severity.name}] [{stamp:.9f}] [{self.name}]: {message}\n'
+        stamp_ns = time.time_ns()
+        seconds, nanoseconds = divmod(stamp_ns, 1_000_000_000)
+        line = f'[{severity.name}] [{seconds}.{nanoseconds:09d}] [{self.name}]: {message}\n'
         with _lock:
             sys.stderr.write(line)
             sys.stderr.flush()
+        sink = self._rosout_sink()
+        if sink is not None and not getattr(_in_sink, 'active', False):
+            _in_sink.active = True
+            try:
+                sink(stamp_ns, int(severity), self.name, str(message), *_caller())
+            except Exception:  # noqa: BLE001 - /rosout never breaks logging (rcl just drops it)
+                pass
+            finally:
+                _in_sink.active = False
         return True
 
     def debug(self, message: Any, **kw: Any) -> bool:

@@ -17,11 +17,14 @@ from . import graph  # ros_discovery_info (graph hooks below are marked "graph h
 from . import param_services  # rcl_interfaces parameter services ("parameter services hook")
 from .context import Context, get_default_context
 from .duration import Duration
-from .logging import RcutilsLogger
+from .logging import RcutilsLogger, add_rosout_sink, remove_rosout_sink
 from .names import expand, normalize_namespace, remap, validate_node_name
 from .parameter import FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, SetParametersResult
-from .qos import QoSProfile, as_profile, qos_profile_clock
-from .time import Clock, ClockType, ROSClock
+from .qos import (QoSProfile, as_profile, qos_profile_clock, qos_profile_parameter_events,
+                  qos_profile_rosout_default)
+from .time import Clock, ClockType, ROSClock, Time
+
+ParameterEvent = msgs.get_message('rcl_interfaces/msg/ParameterEvent')
 
 
 class Publisher:
@@ -31,6 +34,7 @@ class Publisher:
         self.topic = topic
         self.qos_profile = qos
         self._node = node
+        self._destroyed = False
         self._writer = dds.RawWriter(topic, self.typename, qos.to_dds())
 
     @property
@@ -42,14 +46,28 @@ class Publisher:
         return self._writer.guid
 
     def publish(self, msg: Any) -> None:
-        """Publish a message of this publisher's type, or already serialized CDR bytes."""
+        """Publish a message of this publisher's type, or already serialized CDR bytes.
+
+        As rclpy: InvalidHandle once the publisher (or its node) is destroyed, RCLError once its
+        context is shut down; rclpy's signal handler shuts it down on SIGINT/SIGTERM before spin
+        returns, and so does this runtime's (see rclpy_compat.init)."""
+        if self._destroyed:
+            raise exc.InvalidHandle('cannot use Destroyable because destruction was requested')
+        if not self._node.context.ok():
+            raise exc.RCLError("Failed to publish: publisher's context is invalid")
         if isinstance(msg, (bytes, bytearray, memoryview)):
-            self._writer.write(msg)
-            return
-        if msgs.type_of(msg) != self.typename:
+            data: Any = msg
+        elif msgs.type_of(msg) != self.typename:
             raise TypeError(f'{self._node.get_name()}: publisher on {self.topic} expects '
                             f'{self.typename}, got {msgs.type_of(msg)}')
-        self._writer.write(msgs.serialize(msg, self.typename))
+        else:
+            data = msgs.serialize(msg, self.typename)
+        try:
+            self._writer.write(data)
+        except Exception:
+            if self._destroyed:  # destroyed by another thread while this one wrote
+                raise exc.InvalidHandle('cannot use Destroyable because destruction was requested') from None
+            raise
 
     def get_subscription_count(self) -> int:
         return self._writer.matched_count()
@@ -171,9 +189,6 @@ class Timer:
         return self._node.destroy_timer(self)
 
 
-_TYPE_NAMES = {t: t.name.lower() for t in Parameter.Type}
-
-
 class Node:
     """rclpy.node.Node (the subset our nodes use, same signatures)."""
 
@@ -212,13 +227,25 @@ class Node:
         self.timers: list[Timer] = []
         self.services: list[Any] = []  # served by the executor (parameter services)
         self._clock = ROSClock()
+        self._clock._on_change.append(self.context.notify)  # sim time moved: timers may be due
         self._clock_sub: Subscription | None = None
         self._destroyed = False
         self._type_warnings: set[tuple[str, str]] = set()
+        # as rcl: the node's log records also go out on /rosout (rqt_console, Foxglove's log panel)
+        self._rosout_publisher: Publisher | None = None
+        if enable_rosout and self.context.args.rosout_logs:
+            self._rosout_publisher = self.create_publisher(
+                msgs.get_message('rcl_interfaces/msg/Log'), '/rosout', qos_profile_rosout_default)
+            add_rosout_sink(self._logger.name, self._publish_rosout)
 
         self._parameters: dict[str, Parameter] = {}
         self._descriptors: dict[str, Any] = {}
         self._set_callbacks: list[Callable[[list[Parameter]], Any]] = []
+        self._pre_set_callbacks: list[Callable[[list[Parameter]], list[Parameter]]] = []
+        self._post_set_callbacks: list[Callable[[list[Parameter]], None]] = []
+        # as rclpy: every declaration and accepted set is announced on /parameter_events
+        self._parameter_event_publisher: Publisher | None = self.create_publisher(
+            ParameterEvent, '/parameter_events', qos_profile_parameter_events)
         self._allow_undeclared = allow_undeclared_parameters
         self._overrides = merged.parameter_overrides(self.get_fully_qualified_name())
         for p in parameter_overrides or []:
@@ -300,6 +327,7 @@ class Node:
             if publisher not in self.publishers:
                 return False
             self.publishers.remove(publisher)
+            publisher._destroyed = True
         dds.delete(publisher._writer)
         graph.node_changed(self)  # graph hook: republish this node's writers
         return True
@@ -325,7 +353,10 @@ class Node:
         if self._destroyed:
             return
         self._destroyed = True
+        remove_rosout_sink(self._logger.name, self._publish_rosout)
+        self._rosout_publisher = None  # destroyed with the other publishers below
         param_services.stop(self)  # parameter services hook: their readers, writers and timer go
+        self._parameter_event_publisher = None  # destroyed with the other publishers below
         for pub in list(self.publishers):
             self.destroy_publisher(pub)
         for sub in list(self.subscriptions):
@@ -337,6 +368,18 @@ class Node:
                 self.context.nodes.remove(self)
         graph.node_destroyed(self)  # graph hook: the node leaves ros_discovery_info
         self.context.notify()
+
+    def _publish_rosout(self, stamp_ns: int, level: int, name: str, msg: str, file: str,
+                        function: str, line: int) -> None:
+        """The logger's /rosout sink: one rcl_interfaces/msg/Log per record, dropped once the
+        context is shut down (rcl can no longer publish it either)."""
+        publisher = self._rosout_publisher
+        if publisher is None or not self.context.ok():
+            return
+        record = publisher.msg_type(level=level, name=name, msg=msg, file=file,
+                                    function=function, line=line)
+        record.stamp.sec, record.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        publisher.publish(record)
 
     def _run_callback(self, callback: Callable[..., Any], arg: Any, what: str) -> None:
         try:
@@ -375,10 +418,16 @@ class Node:
         return sum(1 for ep in self.context.discovery().endpoints() if not ep.is_writer and ep.topic == fqn)
 
     # --- parameters -------------------------------------------------------------------------
+    # rclpy's semantics (rclpy/node.py, Jazzy): a declaration or a set first applies the
+    # descriptor (read-only, the static type, the first integer/floating-point range: inclusive,
+    # the edges within PARAM_REL_TOL), then the on-set callbacks (newest first; the first refusal
+    # wins); only then are the values stored, announced on /parameter_events and handed to the
+    # post-set callbacks (newest first). Pre-set callbacks (set_parameters* only) may replace the
+    # list before all that. Reasons and exceptions carry rclpy's texts.
     def declare_parameter(self, name: str, value: Any = None, descriptor: Any = None,
                           ignore_override: bool = False) -> Parameter:
         if name in self._parameters:
-            raise exc.ParameterAlreadyDeclaredException(name)
+            raise exc.ParameterAlreadyDeclaredException([name])
         descriptor = descriptor or ParameterDescriptor()
         descriptor.name = name
         if isinstance(value, Parameter.Type):
@@ -393,13 +442,12 @@ class Node:
             value = self._coerce(name, self._overrides[name], Parameter.Type(descriptor.type))
         param = Parameter(name, Parameter.Type.from_parameter_value(value) if value is not None
                           else Parameter.Type.NOT_SET, value)
-        self._check(param, descriptor)
-        result = self._call_set_callbacks([param])
+        result = self._set_parameters_common([param], {name: descriptor})
         if not result.successful:
+            if result.reason.startswith('Wrong parameter type'):
+                raise exc.InvalidParameterTypeException(param, Parameter.Type(descriptor.type).name)
             raise exc.InvalidParameterValueException(name, value, result.reason)
-        self._descriptors[name] = descriptor
-        self._parameters[name] = param
-        return param
+        return self._parameters[name]
 
     def declare_parameters(self, namespace: str, parameters: Iterable[tuple], ignore_override: bool = False) -> list[Parameter]:
         out = []
@@ -441,49 +489,90 @@ class Node:
             raise exc.ParameterNotDeclaredException(name)
         return self._descriptors[name]
 
+    def add_pre_set_parameters_callback(self, callback: Callable[[list[Parameter]], list[Parameter]]) -> None:
+        """callback(parameters) -> the parameters to set instead (set_parameters* only)."""
+        if not callable(callback):
+            raise TypeError(f'Callback must be callable, got {type(callback)}')
+        self._pre_set_callbacks.insert(0, callback)
+
+    def remove_pre_set_parameters_callback(self, callback: Callable[[list[Parameter]], list[Parameter]]) -> None:
+        self._pre_set_callbacks.remove(callback)
+
     def add_on_set_parameters_callback(self, callback: Callable[[list[Parameter]], Any]) -> None:
+        if not callable(callback):
+            raise TypeError(f'Callback must be callable, got {type(callback)}')
         self._set_callbacks.insert(0, callback)
 
     def remove_on_set_parameters_callback(self, callback: Callable[[list[Parameter]], Any]) -> None:
         self._set_callbacks.remove(callback)
 
+    def add_post_set_parameters_callback(self, callback: Callable[[list[Parameter]], None]) -> None:
+        """callback(parameters) after they were set (declared or changed), to act on them."""
+        if not callable(callback):
+            raise TypeError(f'Callback must be callable, got {type(callback)}')
+        self._post_set_callbacks.insert(0, callback)
+
+    def remove_post_set_parameters_callback(self, callback: Callable[[list[Parameter]], None]) -> None:
+        self._post_set_callbacks.remove(callback)
+
     def set_parameters(self, parameter_list: list[Parameter]) -> list[Any]:
-        return [self._set_one(p) for p in parameter_list]
+        """One result per parameter; raises ParameterNotDeclaredException at an undeclared one."""
+        return [self._set_parameters_atomically([p]) for p in parameter_list]
 
     def set_parameters_atomically(self, parameter_list: list[Parameter]) -> Any:
-        for p in parameter_list:
-            res = self._validate_set(p)
-            if not res.successful:
-                return res
-        result = self._call_set_callbacks(parameter_list)
-        if result.successful:
-            for p in parameter_list:
-                self._store(p)
-        return result
+        return self._set_parameters_atomically(parameter_list)
 
-    def _set_one(self, param: Parameter) -> Any:
-        res = self._validate_set(param)
-        if not res.successful:
-            return res
-        result = self._call_set_callbacks([param])
-        if result.successful:
-            self._store(param)
-        return result
+    def _set_parameters_atomically(self, parameter_list: list[Parameter]) -> Any:
+        if self._pre_set_callbacks:
+            modified: list[Parameter] = []
+            for callback in list(self._pre_set_callbacks):
+                modified.extend(callback(parameter_list))
+            parameter_list = modified
+            if not parameter_list:
+                return SetParametersResult(
+                    successful=False, reason='parameter list cannot be empty, this might be due to '
+                    'pre_set_parameters_callback modifying the original parameters list.')
+        if not self._allow_undeclared:
+            undeclared = [p.name for p in parameter_list if p.name not in self._parameters]
+            if undeclared:
+                raise exc.ParameterNotDeclaredException(undeclared)
+        return self._set_parameters_common(parameter_list)
 
-    def _store(self, param: Parameter) -> None:
-        if param.name not in self._parameters:
-            self._descriptors[param.name] = ParameterDescriptor(name=param.name, type=int(param.type_))
-        self._parameters[param.name] = param
-
-    def _validate_set(self, param: Parameter) -> Any:
-        if param.name not in self._parameters:
-            if not self._allow_undeclared:
-                return SetParametersResult(successful=False, reason=f"parameter '{param.name}' has not been declared")
-            return SetParametersResult(successful=True)
-        try:
-            self._check(param, self._descriptors[param.name])
-        except exc.ParameterException as err:
-            return SetParametersResult(successful=False, reason=str(err))
+    def _set_parameters_common(self, params: list[Parameter], descriptors: dict[str, Any] | None = None) -> Any:
+        """Descriptors given: a declaration (no read-only check; these descriptors are kept)."""
+        table = self._descriptors if descriptors is None else descriptors
+        for param in params:
+            if param.name in table:
+                result = self._apply_descriptor(param, table[param.name], descriptors is None)
+                if not result.successful:
+                    return result
+        for callback in list(self._set_callbacks):
+            result = callback(params)
+            if result is None or not hasattr(result, 'successful'):
+                return SetParametersResult(successful=False, reason='Callback returned an invalid type')
+            if not result.successful:
+                return SetParametersResult(successful=False, reason=result.reason)
+        event = ParameterEvent(node=self.get_fully_qualified_name())
+        for param in params:
+            if descriptors is None and param.type_ == Parameter.Type.NOT_SET:
+                event.deleted_parameters.append(param.to_parameter_msg())  # set to nothing: gone
+                self._parameters.pop(param.name, None)
+                self._descriptors.pop(param.name, None)
+                continue
+            if descriptors is not None:
+                self._descriptors[param.name] = descriptors[param.name]
+            elif param.name not in self._descriptors:  # an undeclared one, where allowed
+                self._descriptors[param.name] = ParameterDescriptor(
+                    name=param.name, type=int(param.type_), dynamic_typing=True)
+            old = self._parameters.get(param.name)
+            new = old is None or old.type_ == Parameter.Type.NOT_SET
+            (event.new_parameters if new else event.changed_parameters).append(param.to_parameter_msg())
+            self._parameters[param.name] = param
+        event.stamp = self._clock.now().to_msg()
+        if self._parameter_event_publisher is not None:
+            self._parameter_event_publisher.publish(event)
+        for post in list(self._post_set_callbacks):
+            post(params)
         return SetParametersResult(successful=True)
 
     def _coerce(self, name: str, value: Any, declared: Parameter.Type) -> Any:
@@ -493,30 +582,24 @@ class Node:
             return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value]
         return value
 
-    def _check(self, param: Parameter, descriptor: Any) -> None:
-        if descriptor.read_only and param.name in self._parameters:
-            raise exc.ParameterImmutableException(param.name)
-        declared = Parameter.Type(descriptor.type)
-        if (not descriptor.dynamic_typing and declared != Parameter.Type.NOT_SET
-                and param.type_ not in (declared, Parameter.Type.NOT_SET)):
-            raise exc.InvalidParameterTypeException(
-                param.name, f'expected {_TYPE_NAMES[declared]}, got {_TYPE_NAMES[param.type_]} ({param.value!r})')
-        value = param.value
-        for rng in list(descriptor.floating_point_range):
-            if param.type_ == Parameter.Type.DOUBLE and not _in_range(value, rng.from_value, rng.to_value, rng.step, True):
-                raise exc.InvalidParameterValueException(
-                    param.name, value, f'outside [{rng.from_value}, {rng.to_value}]' + (f' step {rng.step}' if rng.step else ''))
-        for rng in list(descriptor.integer_range):
-            if param.type_ == Parameter.Type.INTEGER and not _in_range(value, rng.from_value, rng.to_value, rng.step, False):
-                raise exc.InvalidParameterValueException(
-                    param.name, value, f'outside [{rng.from_value}, {rng.to_value}]' + (f' step {rng.step}' if rng.step else ''))
-
-    def _call_set_callbacks(self, params: list[Parameter]) -> Any:
-        for cb in list(self._set_callbacks):
-            result = cb(params)
-            if result is None or not getattr(result, 'successful', False):
-                reason = getattr(result, 'reason', '') if result is not None else 'callback returned None'
-                return SetParametersResult(successful=False, reason=reason)
+    def _apply_descriptor(self, param: Parameter, descriptor: Any, check_read_only: bool) -> Any:
+        """rclpy's Node._apply_descriptor: whether descriptor admits param (nothing is stored)."""
+        descriptor.name = param.name
+        if check_read_only and descriptor.read_only:
+            return SetParametersResult(
+                successful=False, reason=f'Trying to set a read-only parameter: {param.name}.')
+        if descriptor.dynamic_typing:
+            descriptor.type = int(param.type_)
+        elif param.name in self._parameters and param.type_ == Parameter.Type.NOT_SET:
+            return SetParametersResult(successful=False, reason='Static parameter cannot be undeclared')
+        elif param.type_ != Parameter.Type.NOT_SET and int(param.type_) != descriptor.type:
+            return SetParametersResult(
+                successful=False, reason=f"Wrong parameter type, expected "
+                f"'Type.{Parameter.Type(descriptor.type).name}' got 'Type.{param.type_.name}'")
+        if param.type_ == Parameter.Type.INTEGER and len(descriptor.integer_range):
+            return _apply_range(param, descriptor.integer_range[0], False)
+        if param.type_ == Parameter.Type.DOUBLE and len(descriptor.floating_point_range):
+            return _apply_range(param, descriptor.floating_point_range[0], True)
         return SetParametersResult(successful=True)
 
     # --- sim time ---------------------------------------------------------------------------
@@ -530,26 +613,44 @@ class Node:
         return SetParametersResult(successful=True)
 
     def _apply_sim_time(self, enabled: bool) -> None:
+        """As rclpy's TimeSource: ROS time on, read from /clock (zero until the first message,
+        so timers on the node's clock do not fire before it), or off (system time; the last
+        /clock is kept for when it is turned on again)."""
         if enabled and self._clock_sub is None:
             clock_type = msgs.get_message('rosgraph_msgs/msg/Clock')
             self._clock_sub = self.create_subscription(clock_type, '/clock', self._on_clock, qos_profile_clock)
         elif not enabled and self._clock_sub is not None:
             self.destroy_subscription(self._clock_sub)
             self._clock_sub = None
-            self._clock._set_ros_time_override(None)
+        self._clock._set_ros_time_is_active(enabled)
 
     def _on_clock(self, msg: Any) -> None:
-        self._clock._set_ros_time_override(msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+        self._clock.set_ros_time_override(Time.from_msg(msg.clock))
 
 
-def _in_range(value: float, lo: float, hi: float, step: float, is_float: bool) -> bool:
-    tol = Node.PARAM_REL_TOL * max(1.0, abs(lo), abs(hi)) if is_float else 0
-    if value < lo - tol or value > hi + tol:
-        return False
-    if step and abs(value - hi) > tol:
-        k = (value - lo) / step
-        return abs(k - round(k)) <= (1e-6 if is_float else 0)
-    return True
+def _apply_range(param: Parameter, rng: Any, is_float: bool) -> Any:
+    """rclpy's _apply_integer_range / _apply_floating_point_range: inclusive bounds, the edges
+    within Node.PARAM_REL_TOL (floats), an optional step from the lower bound; NaN is refused."""
+    lo, hi = min(rng.from_value, rng.to_value), max(rng.from_value, rng.to_value)
+    value, name = param.value, param.name
+
+    def at(bound: float) -> bool:
+        return math.isclose(value, bound, rel_tol=Node.PARAM_REL_TOL) if is_float else value == bound
+
+    if at(lo) or at(hi):
+        return SetParametersResult(successful=True)
+    if not lo < value < hi:
+        return SetParametersResult(successful=False, reason=(
+            f'Parameter {name} out of range{" " if is_float else ". "}Min: {lo}, Max: {hi}, value: {value}'))
+    if rng.step:
+        k = round((value - lo) / rng.step)
+        off = not math.isclose(lo + k * rng.step, value, rel_tol=Node.PARAM_REL_TOL) if is_float \
+            else (value - lo) % rng.step != 0
+        if off:
+            return SetParametersResult(successful=False, reason=(
+                f'The parameter value for {name} is not {"close enough to " if is_float else ""}a '
+                f'valid step. Min: {lo}, max: {hi}, value: {value}, step: {rng.step}'))
+    return SetParametersResult(successful=True)
 
 
 __all__ = ['Node', 'Publisher', 'Subscription', 'Timer', 'Duration', 'FloatingPointRange', 'IntegerRange']

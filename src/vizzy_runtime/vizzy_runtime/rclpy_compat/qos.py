@@ -97,3 +97,7 @@ qos_profile_services_default = QoSProfile(depth=10)
 qos_profile_parameters = QoSProfile(depth=1000)
 qos_profile_parameter_events = QoSProfile(depth=1000)
 qos_profile_clock = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+# rcl's rcl_qos_profile_rosout_default (the /rosout publisher every node has)
+qos_profile_rosout_default = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                                        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                        lifespan=Duration(seconds=10))

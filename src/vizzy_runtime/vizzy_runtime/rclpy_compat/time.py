@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 import time as _time
 from enum import IntEnum
-from typing import Any
+from typing import Any, Callable
 
 from .. import msgs
 from .duration import Duration
@@ -82,28 +82,47 @@ class Time:
 
 
 class Clock:
-    """rclpy.clock.Clock. A ROS_TIME clock reads the latest /clock once sim time is on."""
+    """rclpy.clock.Clock. A ROS_TIME clock with ROS time active (use_sim_time) reads the latest
+    override (/clock), and zero before the first one, as rclpy's does: timers on it do not fire
+    until /clock arrives. Inactive, it reads the system time."""
 
     def __init__(self, *, clock_type: ClockType = ClockType.SYSTEM_TIME) -> None:
         self.clock_type = clock_type
-        self._sim_ns: int | None = None
+        self._ros_time_active = False
+        self._ros_time_ns = 0   # the latest override; 0: none yet ("uninitialized" in rcl)
         self._changed = threading.Condition()
+        # called (any thread) whenever what now() reads changes other than by the passing of
+        # wall time: a node's clock wakes its executor with it, so sim-time timers need no polling
+        self._on_change: list[Callable[[], None]] = []
 
     def now(self) -> Time:
         if self.clock_type == ClockType.STEADY_TIME:
             return Time(nanoseconds=_time.monotonic_ns(), clock_type=self.clock_type)
-        if self.clock_type == ClockType.ROS_TIME and self._sim_ns is not None:
-            return Time(nanoseconds=self._sim_ns, clock_type=self.clock_type)
+        if self.clock_type == ClockType.ROS_TIME and self._ros_time_active:
+            return Time(nanoseconds=self._ros_time_ns, clock_type=self.clock_type)
         return Time(nanoseconds=_time.time_ns(), clock_type=self.clock_type)
 
     @property
     def ros_time_is_active(self) -> bool:
-        return self._sim_ns is not None
+        return self.clock_type == ClockType.ROS_TIME and self._ros_time_active
 
-    def _set_ros_time_override(self, nanoseconds: int | None) -> None:
+    def _set_ros_time_is_active(self, enabled: bool) -> None:
+        """rclpy's TimeSource calls this when use_sim_time changes (the override is kept)."""
         with self._changed:
-            self._sim_ns = nanoseconds
+            self._ros_time_active = bool(enabled)
             self._changed.notify_all()
+        self._notify_change()
+
+    def set_ros_time_override(self, time: Time) -> None:
+        """What /clock sets (it is read only while ROS time is active)."""
+        with self._changed:
+            self._ros_time_ns = int(time.nanoseconds)
+            self._changed.notify_all()
+        self._notify_change()
+
+    def _notify_change(self) -> None:
+        for callback in list(self._on_change):
+            callback()
 
     def sleep_for(self, rel: Duration) -> bool:
         return self.sleep_until(self.now() + rel)
@@ -113,8 +132,8 @@ class Clock:
             remaining = until.nanoseconds - self.now().nanoseconds
             if remaining <= 0:
                 return True
-            if self._sim_ns is None:
-                _time.sleep(remaining / 1e9)
+            if not self.ros_time_is_active:
+                _time.sleep(min(remaining / 1e9, 0.1))   # ROS time may turn on meanwhile
             else:
                 with self._changed:
                     self._changed.wait(min(remaining / 1e9, 0.1))

@@ -1,0 +1,82 @@
+"""node_tools.run(), the main of every node, as a process on the runtime under test: repeated
+Ctrl-C during clean-up and bad start-up parameters end the node cleanly, in one line at most.
+
+Under `ros2 launch` in a terminal each node gets SIGINT twice (from the terminal's process group
+and from launch); on the real rclpy that used to raise KeyboardInterrupt inside destroy_node().
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
+
+STARTUP_TIMEOUT = 120.0   # imports alone take tens of seconds on a loaded 2-core machine
+
+
+def _node(*ros_args: str) -> subprocess.Popen[str]:
+    cmd = [sys.executable, '-m', 'vizzy_runtime.cli', 'run', 'vizzy_sim_bridge', 'gaze_controller']
+    if ros_args:
+        cmd += ['--ros-args', *ros_args]
+    # SIGINT at its default in the child whatever the caller ignores (a shell's background job)
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=dict(os.environ, PYTHONUNBUFFERED='1'),
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def _lines(proc: subprocess.Popen[str]) -> queue.Queue[str]:
+    lines: queue.Queue[str] = queue.Queue()
+
+    def pump() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.put(line)
+        lines.put('')  # end of output
+
+    threading.Thread(target=pump, daemon=True).start()
+    return lines
+
+
+def test_repeated_sigint_during_clean_up_exits_cleanly() -> None:
+    proc = _node()
+    lines = _lines(proc)
+    seen: list[str] = []
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while not any('gaze controller:' in line for line in seen):
+        try:
+            seen.append(lines.get(timeout=max(0.1, deadline - time.monotonic())))
+        except queue.Empty:
+            proc.kill()
+            pytest.fail(f'no start-up line within {STARTUP_TIMEOUT} s: {"".join(seen)[-2000:]}')
+        assert seen[-1] or proc.poll() is None, f'the node ended early: {"".join(seen)[-2000:]}'
+    for gap in (0.05, 0.05, 0.0):     # a terminal's Ctrl-C, launch's SIGINT, one more
+        proc.send_signal(signal.SIGINT)
+        time.sleep(gap)
+    code = proc.wait(60)
+    rest = ''.join(iter(lambda: lines.get(timeout=10), ''))
+    out = ''.join(seen) + rest
+    assert code == 0, f'exit {code}: {out[-3000:]}'
+    assert 'Traceback' not in out and 'KeyboardInterrupt' not in out, out[-3000:]
+    assert 'context is invalid' not in out, out[-3000:]
+
+
+@pytest.mark.parametrize('rule, names', [
+    ('control_rate_hz:=abc', ('control_rate_hz',)),     # wrong type
+    ('control_rate_hz:=-5.0', ('control_rate_hz',)),    # outside the descriptor's range
+])
+def test_a_bad_start_up_parameter_is_one_line_and_exit_2(rule: str, names: tuple[str, ...]) -> None:
+    proc = _node('-p', rule)
+    out, _ = proc.communicate(timeout=STARTUP_TIMEOUT)
+    lines = [line for line in out.splitlines() if line.strip()]
+    assert proc.returncode == 2, out[-3000:]
+    assert 'Traceback' not in out, out[-3000:]
+    assert len(lines) == 1, out[-3000:]
+    assert 'gaze_controller' in lines[0] and all(n in lines[0] for n in names), lines[0]

@@ -1,0 +1,69 @@
+"""The whole graph split across vendors: part of it on the real rclpy (rmw_fastrtps_cpp, a
+`vizzy launch` of a subset of graph.yaml run by .venv-ros's python) and the rest on the bundled
+runtime (Cyclone DDS, a Launcher in this process), both ways round. Every output of the graph
+must flow, which needs each side's inputs to cross the vendor boundary: the sim's camera images,
+camera_info, /clock, /tf and /joint_states to the perception nodes, their /gaze/command back to
+the gaze controller, and /gaze/state to them."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+from vizzy_runtime.launcher import Launcher, load_graph
+from vizzy_runtime.testing import real_rclpy_python
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mixed_support import Flow, graph_subset, real_launch, stop_all, wait_state  # noqa: E402
+
+HEAD = ('sim', 'gaze_controller')
+PERCEPTION = ('foveation', 'stereo_ses', 'cylinder_detector', 'mot_planner')
+
+# a message on each means every node is up and fed across the boundary
+OUTPUTS = {
+    '/clock', '/joint_states', '/tf', '/vizzy/left/image_raw', '/vizzy/right/image_raw',
+    '/vizzy/left/camera_info', '/vizzy/rgbd/points',                 # sim
+    '/gaze/state', '/vizzy/joint_commands',                          # gaze_controller
+    '/foveation/image', '/foveation/detections',                     # foveation
+    '/stereo/points', '/ses/cells',                                  # stereo_ses
+    '/cylinders',                                                    # cylinder_detector
+    '/mot/tracks',                                                   # mot_planner
+}
+# waits on state, never on time: generous for a loaded 2-core machine starting 6 nodes
+DEADLINE_S = 150.0
+
+
+@pytest.mark.parametrize('real_side', ['head', 'perception'])
+def test_whole_graph_across_vendors(tmp_path, real_side):
+    real_rclpy_python()  # skips without .venv-ros
+    real_nodes, bundled_nodes = (HEAD, PERCEPTION) if real_side == 'head' else (PERCEPTION, HEAD)
+    bundled_log = open(tmp_path / 'bundled.log', 'w+')
+    bundled = Launcher(load_graph(graph_subset(tmp_path / 'bundled.yaml', bundled_nodes)),
+                       output=bundled_log, grace_s=15.0)  # SIGINT to SIGTERM: a loaded machine
+    flow = Flow(OUTPUTS, decode={'/gaze/state'})
+
+    def sources() -> set[str]:  # who the gaze controller serves: commands crossed the boundary
+        return {m.active_source for m in flow.messages['/gaze/state']} - {''}
+
+    real = real_launch(graph_subset(tmp_path / 'real.yaml', real_nodes), tmp_path / 'real.log')
+    try:
+        bundled.start()
+        up = wait_state(lambda: (flow.all_heard() and sources()) or not real.alive()
+                        or any(c is not None for c in bundled.poll().values()), DEADLINE_S)
+        real_alive, bundled_states = real.alive(), bundled.poll()
+    finally:
+        codes: dict = {}
+        stop_all(lambda: codes.update(bundled.stop()), lambda: codes.update(real=real.stop()))
+    bundled_log.seek(0)
+    logs = f'--- real ({", ".join(real_nodes)}):\n{real.log()}\n--- bundled:\n{bundled_log.read()[-3000:]}'
+    assert real_alive and all(c is None for c in bundled_states.values()), (
+        f'a side died: real alive {real_alive}, bundled {bundled_states}\n{logs}')
+    assert up and not flow.missing(), (
+        f'no messages on {sorted(flow.missing())} (heard {flow.counts})\n{logs}')
+    assert sources() <= {'foveation', 'stereo_ses', 'mot_planner'} and sources(), (
+        f'no gaze command from the perception nodes was served: {sources()}\n{logs}')
+    # both launchers stop their nodes cleanly (SIGINT; the real launcher exits 0 once they have)
+    assert codes == {**{n: 0 for n in bundled_nodes}, 'real': 0}, f'unclean exit {codes}\n{logs}'
+    assert 'exit code' not in real.log(100000).replace('(exit code 0)', ''), logs
