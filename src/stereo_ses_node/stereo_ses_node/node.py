@@ -4,7 +4,8 @@ Topic names are relative (in: `left/image_raw`, `left/camera_info`, `right/...`,
 the graph remaps the camera inputs to the simulator's, so below are the resolved defaults.
 
 Subscribes
-  /vizzy/{left,right}/image_raw   sensor_msgs/Image rgb8/bgr8 (RELIABLE keep-last 5), paired by stamp
+  /vizzy/{left,right}/image_raw   sensor_msgs/Image rgb8/bgr8 (RELIABLE keep-last 5, see QoS
+                                  below), paired by stamp
   /vizzy/{left,right}/camera_info sensor_msgs/CameraInfo: K of each camera
   /tf, /tf_static                 camera poses: left optical frame in `ego_frame`, right in left
   /gaze/state                     active_vision_msgs/GazeState: nothing is fused while in_saccade

@@ -62,8 +62,8 @@ def generate_launch_description() -> LaunchDescription:
             'namespace', default_value='/',
             description='Namespace of the whole graph, e.g. /head2 (every topic moves with it).')]
     # the graph's scope: its namespace, and /clock, /tf, /tf_static relative for every node
-    group = [PushROSNamespace(LaunchConfiguration('namespace')),
-             SetRemap('/clock', 'clock'), SetRemap('/tf', 'tf'), SetRemap('/tf_static', 'tf_static')]
+    group = [PushROSNamespace(LaunchConfiguration('namespace')), SetRemap('/clock', 'clock'),
+             SetRemap('/tf', 'tf'), SetRemap('/tf_static', 'tf_static')]
     params_dir = tempfile.mkdtemp(prefix='vizzy_launch_')
     for entry in graph['nodes']:
         share = get_package_share_directory(entry['package'])

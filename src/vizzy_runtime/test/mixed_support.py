@@ -20,11 +20,14 @@ from vizzy_runtime.launcher import default_graph_file
 from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python
 
 
-def graph_subset(path: Path, names: Iterable[str]) -> Path:
+def graph_subset(path: Path, names: Iterable[str], use_sim_time: bool | None = None) -> Path:
     """A graph file with only the named nodes of the shipped graph.yaml (same parameters,
-    remappings and use_sim_time), written to path."""
+    remappings and use_sim_time unless given: without the sim, nothing publishes /clock and
+    sim-time timers never fire), written to path."""
     names = set(names)
     graph = yaml.safe_load(Path(default_graph_file()).read_text())
+    if use_sim_time is not None:
+        graph['use_sim_time'] = use_sim_time
     graph['nodes'] = [n for n in graph['nodes'] if n['name'] in names]
     assert {n['name'] for n in graph['nodes']} == names, f'not in graph.yaml: {names}'
     path.write_text(yaml.safe_dump(graph))

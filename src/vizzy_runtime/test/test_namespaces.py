@@ -108,7 +108,7 @@ def test_ns_moves_every_topic(context, name) -> None:
 
 # --- two heads ------------------------------------------------------------------------------------
 
-HEADS = {'/head1': 160, '/head2': 192}      # each head's image width (4:3): tells their frames apart
+HEADS = {'/head1': 160, '/head2': 192}      # each head's image width (4:3) tells their frames apart
 
 
 def _head_graph(tmp_path: Path, ns: str) -> Path:
@@ -120,7 +120,8 @@ def _head_graph(tmp_path: Path, ns: str) -> Path:
         'foveation': {'ros__parameters': {'model_path': ''}}}))
     graph = yaml.safe_load(default_graph_file().read_text())
     graph['nodes'] = [dict(n, parameters=[*n.get('parameters', []), str(params)])
-                      for n in graph['nodes'] if n['name'] in ('sim', 'gaze_controller', 'foveation')]
+                      for n in graph['nodes']
+                      if n['name'] in ('sim', 'gaze_controller', 'foveation')]
     path = tmp_path / f'{ns.strip("/")}_graph.yaml'
     path.write_text(yaml.safe_dump(graph))
     return path

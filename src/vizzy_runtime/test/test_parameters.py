@@ -16,11 +16,13 @@ fovea:
   ros__parameters:
     levels: 5
     sigma: 100.0
-    nested:
-      f0: 30
+    untouched: y
 /vizzy/fovea:
   ros__parameters:
     levels: 6
+    sigma: 90.0
+    nested:
+      f0: 30
 other:
   ros__parameters:
     levels: 99
@@ -32,11 +34,15 @@ def test_params_file_precedence_and_nesting(context, tmp_path):
     f.write_text(PARAMS_YAML)
     node = Node('fovea', context=context, namespace='/vizzy',
                 cli_args=['--ros-args', '--params-file', str(f), '-p', 'sigma:=80.5'])
-    assert node.declare_parameter('levels', 3).value == 6          # fully qualified entry wins (later)
+    assert node.declare_parameter('levels', 3).value == 6          # its fully qualified entry
     assert node.declare_parameter('sigma', 1.0).value == 80.5      # -p after the file wins
     assert node.declare_parameter('nested.f0', 1.0).value == 30.0  # int in YAML for a double: coerced
     assert node.declare_parameter('shared', 0).value == 1          # /** applies to every node
-    assert node.declare_parameter('untouched', 'x').value == 'x'
+    assert node.declare_parameter('untouched', 'x').value == 'x'  # `fovea:` is /fovea (rcl)
+    root = Node('fovea', context=context,
+                cli_args=['--ros-args', '--params-file', str(f), '-p', 'sigma:=80.5'])
+    assert root.declare_parameter('untouched', 'x').value == 'y'
+    assert root.declare_parameter('levels', 3).value == 5
 
 
 def test_missing_or_broken_params_file_is_a_clear_error(tmp_path):

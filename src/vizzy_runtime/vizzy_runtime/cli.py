@@ -80,7 +80,7 @@ class _Peers:
     matched reached Cyclone before Cyclone knew the writer, and it does not resend on Cyclone's
     pre-emptive ACKNACK."""
 
-    # a participant seen this long with no endpoint at all has none (e.g. another CLI's)
+    # a participant seen this long without both readers and writers has no more (another CLI)
     ENDPOINT_GRACE_S = 2.0
 
     def __init__(self) -> None:
@@ -93,7 +93,8 @@ class _Peers:
         self._endpoints = [BuiltinDataReader(dp, BuiltinTopicDcpsPublication),
                            BuiltinDataReader(dp, BuiltinTopicDcpsSubscription)]
         self.first_seen: dict[bytes, float] = {}   # live peers
-        self.with_endpoints: set[bytes] = set()
+        self.with_writers: set[bytes] = set()
+        self.with_readers: set[bytes] = set()
         self.announcing: set[bytes] = set()        # peers with a ros_discovery_info writer
 
     def poll(self) -> None:
@@ -105,20 +106,22 @@ class _Peers:
                     self.first_seen.pop(key, None)
                 elif key != self._self and b'enclave=' in _user_data(s.qos):
                     self.first_seen.setdefault(key, time.monotonic())
-            for reader in self._endpoints:
+            for reader, seen in zip(self._endpoints, (self.with_writers, self.with_readers)):
                 for s in reader.take(N=1000):
                     if s.sample_info.instance_state == InstanceState.Alive:
-                        self.with_endpoints.add(s.participant_key.bytes)
-                        if s.topic_name == 'ros_discovery_info':
+                        seen.add(s.participant_key.bytes)
+                        if s.topic_name == 'ros_discovery_info' and seen is self.with_writers:
                             self.announcing.add(s.participant_key.bytes)
         except Exception:  # noqa: BLE001 - decoding a peer being torn down can fail: look again
             pass
 
     def endpoints_known(self) -> bool:
-        """Every live peer's readers and writers have been seen (or it has none)."""
+        """Every live peer's readers and writers have been seen. A ROS 2 process has both (at
+        least ros_discovery_info's); they come in one burst per kind, but the two kinds from Fast
+        DDS up to ~1 s apart. A peer seen for ENDPOINT_GRACE_S without both has no more."""
         now = time.monotonic()
-        return all(key in self.with_endpoints or now - t > self.ENDPOINT_GRACE_S
-                   for key, t in self.first_seen.items())
+        return all((key in self.with_writers and key in self.with_readers)
+                   or now - t > self.ENDPOINT_GRACE_S for key, t in self.first_seen.items())
 
     def unheard(self, heard: set[bytes]) -> set[bytes]:
         """Live peers that announce their nodes on ros_discovery_info but are not in heard."""
@@ -133,9 +136,10 @@ def _user_data(qos: Any) -> bytes:
     return b''
 
 
-def _listen(wait: float, settled: Any, max_extra: float = 5.0) -> None:
-    """Listen at least `wait` seconds, then until settled() (at most max_extra seconds more)."""
-    start = time.monotonic()
+def _listen(wait: float, settled: Any, max_extra: float = 5.0, start: float | None = None) -> None:
+    """Listen until `wait` seconds after start (default: now), then until settled(), at most
+    max_extra seconds more."""
+    start = time.monotonic() if start is None else start
     while True:
         elapsed = time.monotonic() - start
         if elapsed >= wait and (settled() or elapsed >= wait + max_extra):
@@ -238,14 +242,22 @@ def cmd_topic_hz(ns: argparse.Namespace) -> int:
 
 def cmd_node_list(ns: argparse.Namespace) -> int:
     from .rclpy_compat import graph
+    start = time.monotonic()
     peers = _Peers()
-    graph.snapshot()  # start listening on ros_discovery_info now
+
+    def endpoints_known() -> bool:
+        peers.poll()
+        return peers.endpoints_known()
+
+    # Only then read ros_discovery_info: a Fast DDS writer that learns of our reader after we
+    # learnt of it delivers its latched sample at once, not ~3 s later with its next heartbeat.
+    _listen(min(ns.wait, 0.25), endpoints_known, max_extra=3.0, start=start)
+    graph.snapshot()
 
     def settled() -> bool:
-        peers.poll()
-        return peers.endpoints_known() and not peers.unheard(graph.announced_participants())
+        return endpoints_known() and not peers.unheard(graph.announced_participants())
 
-    _listen(ns.wait, settled)
+    _listen(ns.wait, settled, start=start)
     for namespace, name in graph.node_names_and_namespaces():
         print(f'{namespace.rstrip("/")}/{name}')
     return 0
@@ -307,7 +319,9 @@ def build_parser() -> argparse.ArgumentParser:
     topic = sub.add_parser('topic', help='inspect topics').add_subparsers(dest='topic_verb', required=True)
     tl = topic.add_parser('list')
     tl.add_argument('-t', '--show-types', action='store_true')
-    tl.add_argument('--wait', type=float, default=1.0, help='seconds to listen for discovery')
+    tl.add_argument('--wait', type=float, default=1.0,
+                    help='seconds to listen for discovery at least; then until every ROS 2 process '
+                         'seen has shown its readers and writers (at most 5 s more)')
     tl.set_defaults(func=cmd_topic_list)
     for name, func in (('echo', cmd_topic_echo), ('hz', cmd_topic_hz)):
         t = topic.add_parser(name)
@@ -323,7 +337,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     node = sub.add_parser('node', help='inspect nodes').add_subparsers(dest='node_verb', required=True)
     nl = node.add_parser('list')
-    nl.add_argument('--wait', type=float, default=1.0)
+    nl.add_argument('--wait', type=float, default=1.0,
+                    help='seconds to listen for discovery at least; then until every ROS 2 process '
+                         'seen has announced its nodes (at most 5 s more)')
     nl.set_defaults(func=cmd_node_list)
 
     bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(dest='bag_verb', required=True)

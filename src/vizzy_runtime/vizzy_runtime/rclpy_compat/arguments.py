@@ -59,11 +59,12 @@ class RosArguments:
 
 
 def _node_matches(pattern: str, fqn: str, name: str) -> bool:
+    """rcl's rule: a node key is a fully qualified name, a relative one (`sim`) is made absolute
+    (`/sim`, so it does not reach /head2/sim); `/**` and `*` are wildcards."""
     if pattern in ('/**', '**'):
         return True
-    if pattern.startswith('/'):
-        return fnmatch.fnmatchcase(fqn, pattern.replace('/**', '*'))
-    return pattern == name or fnmatch.fnmatchcase(name, pattern)
+    absolute = pattern if pattern.startswith('/') else '/' + pattern
+    return fnmatch.fnmatchcase(fqn, absolute.replace('/**', '*'))
 
 
 def parse_value(text: str) -> Any:

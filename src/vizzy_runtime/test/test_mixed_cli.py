@@ -1,0 +1,96 @@
+"""The bundled `vizzy topic` / `vizzy node` verbs see nodes on the real rclpy (rmw_fastrtps_cpp):
+the gaze controller and a tiny talker, each started by .venv-ros's python. Each verb is run as
+a user runs it, a fresh process with its default discovery wait."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from vizzy_runtime.testing import real_rclpy_python
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mixed_support import Flow, RealProcess, graph_subset, real_launch, stop_all, wait_state  # noqa: E402
+
+VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']   # the bundled runtime's CLI (.venv)
+
+TALKER = r'''
+import rclpy
+from rclpy.node import Node
+from std_msgs.msg import String
+rclpy.init()
+node = Node('mixed_talker')
+pub = node.create_publisher(String, '/mixed/chatter', 10)
+count = [0]
+def tick():
+    count[0] += 1
+    pub.publish(String(data=f'hello {count[0]}'))
+node.create_timer(0.1, tick)
+try:
+    rclpy.spin(node)
+except KeyboardInterrupt:
+    pass
+node.destroy_node()
+rclpy.try_shutdown()
+'''
+
+
+@pytest.fixture(scope='module')
+def real_nodes(tmp_path_factory):
+    """gaze_controller (by `vizzy launch` on the real rclpy) and mixed_talker, both publishing."""
+    real_rclpy_python()  # skips without .venv-ros
+    tmp = tmp_path_factory.mktemp('mixed_cli')
+    # on wall time: no sim here to publish /clock
+    gaze = real_launch(graph_subset(tmp / 'real.yaml', ['gaze_controller'], use_sim_time=False),
+                       tmp / 'gaze.log')
+    talker = RealProcess(['-c', TALKER], tmp / 'talker.log')
+    try:
+        flow = Flow(['/gaze/state', '/mixed/chatter'])
+        up = wait_state(lambda: flow.all_heard() or not (gaze.alive() and talker.alive()), 120)
+        assert up and gaze.alive() and talker.alive(), (
+            f'real nodes not up: {flow.counts}\n{gaze.log()}\n{talker.log()}')
+        yield gaze, talker
+    finally:
+        codes: list = []
+        stop_all(lambda: codes.append(gaze.stop()), lambda: codes.append(talker.stop()))
+    assert codes == [0, 0], (codes, gaze.log(), talker.log())
+
+
+def vizzy(*args: str, timeout: float = 60) -> str:
+    proc = subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=timeout)
+    assert proc.returncode == 0, f'vizzy {" ".join(args)}: exit {proc.returncode}\n{proc.stderr[-2000:]}'
+    return proc.stdout
+
+
+def test_node_list_sees_real_rclpy_nodes(real_nodes):
+    names = vizzy('node', 'list').split()
+    assert {'/gaze_controller', '/mixed_talker'} <= set(names), names
+
+
+def test_topic_list_sees_real_rclpy_topics_with_types(real_nodes):
+    lines = set(vizzy('topic', 'list', '-t').splitlines())
+    assert {'/mixed/chatter [std_msgs/msg/String]',
+            '/gaze/state [active_vision_msgs/msg/GazeState]',
+            '/gaze/command [active_vision_msgs/msg/GazeCommand]',      # a subscription only
+            '/vizzy/joint_commands [sensor_msgs/msg/JointState]'} <= lines, lines
+
+
+def test_topic_echo_decodes_real_rclpy_messages(real_nodes):
+    out = vizzy('topic', 'echo', '/mixed/chatter', '-n', '1')
+    assert re.fullmatch(r"data: 'hello \d+'\n---\n", out), out
+    out = vizzy('topic', 'echo', '/gaze/state', '-n', '1')
+    assert out.endswith('---\n') and out.count('---') == 1, out
+    assert "frame_id: 'base_link'" in out and 'status_message:' in out, out
+
+
+def test_topic_hz_measures_a_real_rclpy_publisher(real_nodes):
+    out = vizzy('topic', 'hz', '/mixed/chatter', '--duration', '4')
+    rates = [float(r) for r in re.findall(r'average rate: ([0-9.]+)', out)]
+    assert rates, out
+    # a 10 Hz timer on a loaded machine: loose bounds, the point is that it is measured
+    assert 1.0 < rates[-1] < 100.0, out
+    assert re.search(r'min: [0-9.]+s max: [0-9.]+s std dev: [0-9.]+s window: \d+', out), out
