@@ -20,6 +20,12 @@ from vizzy_runtime.launcher import default_graph_file
 from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python
 
 
+# SIGINT to SIGTERM for nodes still running when a launcher stops them: a node busy in a
+# long computation (the cylinder detector's first cloud) on a loaded 2-core machine needs more
+# than the default 5 s to reach its exit
+GRACE_S = 15.0
+
+
 def graph_subset(path: Path, names: Iterable[str], use_sim_time: bool | None = None) -> Path:
     """A graph file with only the named nodes of the shipped graph.yaml (same parameters,
     remappings and use_sim_time unless given: without the sim, nothing publishes /clock and
@@ -54,7 +60,7 @@ class RealProcess:
             self._log.flush()
         return self.log_path.read_text(errors='replace')[-tail:]
 
-    def stop(self, grace_s: float = 20.0) -> int | None:
+    def stop(self, grace_s: float = GRACE_S + 10.0) -> int | None:
         for sig, grace in ((signal.SIGINT, grace_s), (signal.SIGTERM, 3.0), (signal.SIGKILL, 2.0)):
             if self.proc.poll() is not None:
                 break
@@ -77,7 +83,7 @@ def real_launch(graph_file: Path, log: Path, duration_s: float = 240.0) -> RealP
     """`vizzy launch graph_file` on the real rclpy; --duration is a safety net should the test
     die without stopping it (it is stopped long before)."""
     return RealProcess(['-m', 'vizzy_runtime.cli', 'launch', str(graph_file),
-                        '--duration', str(duration_s)], log)
+                        '--duration', str(duration_s), '--grace', str(GRACE_S)], log)
 
 
 class Flow:
@@ -113,6 +119,18 @@ class Flow:
 
     def missing(self) -> set[str]:
         return self.topics - self.heard()
+
+    def close(self) -> None:
+        """Delete the readers now (not at garbage collection, still taking images meanwhile)."""
+        for reader, _ in self.readers.values():
+            dds.delete(reader)
+        self.readers.clear()
+
+
+def expect_clean_real_exit(code: int | None, log: str, what: str) -> None:
+    """A real-rclpy launcher or node exited 0 (node_tools.run treats rclpy's Ctrl-C race, a
+    RuntimeError from a take interrupted by the signal, as the stop it is)."""
+    assert code == 0, f'{what} exited {code}\n{log[-3000:]}'
 
 
 def stop_all(*stoppers: Any) -> None:

@@ -15,7 +15,8 @@ from vizzy_runtime.bag import BagReader, bag_info
 from vizzy_runtime.testing import real_rclpy_python, repo_root
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mixed_support import Flow, graph_subset, real_launch, stop_all, wait_state  # noqa: E402
+from mixed_support import (Flow, expect_clean_real_exit, graph_subset, real_launch,  # noqa: E402
+                           stop_all, wait_state)
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']   # the bundled runtime's CLI (.venv)
 # what the sim and the gaze controller publish, each recorded and decoded
@@ -40,14 +41,15 @@ def test_bundled_bag_record_records_a_real_rclpy_graph(tmp_path):
         # the graph is up (the sim publishes) before recording starts
         flow = Flow(['/clock', '/gaze/state', '/vizzy/left/image_raw'])
         up = wait_state(lambda: flow.all_heard() or not real.alive(), 120)
-        assert up and real.alive(), f'the real-rclpy graph did not come up: {flow.counts}\n{real.log()}'
+        assert up and real.alive(), f'the real graph did not come up: {flow.counts}\n{real.log()}'
         rec = subprocess.run([*VIZZY, 'bag', 'record', '-a', '-o', str(bag), '-d', '10',
                               '--exclude-topics', '/vizzy/rgbd/points'],
                              capture_output=True, text=True, timeout=120)
         assert rec.returncode == 0, rec.stderr[-3000:]
+        flow.close()
     finally:
         code = real.stop()
-    assert code == 0, real.log()
+    expect_clean_real_exit(code, real.log(100000), 'the real sim + gaze_controller')
 
     reader = BagReader(bag)
     topics = reader.topics
@@ -59,7 +61,7 @@ def test_bundled_bag_record_records_a_real_rclpy_graph(tmp_path):
         if msg.topic in RECORDED and msg.topic not in first:
             first[msg.topic] = msgs.deserialize(msg.data, msg.typename)
     missing = {t for t in RECORDED if not seen.get(t)}
-    assert not missing, f'nothing recorded on {sorted(missing)}: {seen}\n{rec.stdout}\n{rec.stderr[-2000:]}'
+    assert not missing, f'nothing on {sorted(missing)}: {seen}\n{rec.stdout}\n{rec.stderr[-2000:]}'
     for topic, typename in RECORDED.items():
         assert topics[topic].type == typename, (topic, topics[topic].type)
     assert all(topics[t].message_count == n for t, n in seen.items()), (topics, seen)
@@ -77,10 +79,16 @@ def test_bundled_bag_record_records_a_real_rclpy_graph(tmp_path):
     assert '/vizzy/left/image_raw' in info and 'sensor_msgs/msg/Image' in info
 
 
+def _stamps(bag: Path, topic: str) -> set[tuple[int, int]]:
+    return {(m.header.stamp.sec, m.header.stamp.nanosec)
+            for m in (msgs.deserialize(r.data, r.typename) for r in BagReader(bag).messages([topic]))}
+
+
 def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
     real_rclpy_python()
+    bag = repo_root() / 'bags' / 'tabletop'
     real = real_launch(graph_subset(tmp_path / 'real.yaml', ['foveation']), tmp_path / 'real.log')
-    flow = Flow(['/foveation/image'])
+    flow = Flow(['/foveation/image'], decode=['/foveation/image'])
     player = None
     try:
         # the real foveation node subscribes to the camera before the bag plays
@@ -89,10 +97,10 @@ def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
             return any(not ep.is_writer and ep.topic == '/vizzy/left/image_raw'
                        for ep in flow.disc.endpoints())
         assert wait_state(lambda: subscribed() or not real.alive(), 120) and real.alive(), real.log()
-        player = subprocess.Popen([*VIZZY, 'bag', 'play', str(repo_root() / 'bags' / 'tabletop'), '-l'],
+        player = subprocess.Popen([*VIZZY, 'bag', 'play', str(bag), '-l'],
                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        flowing = wait_state(lambda: flow.all_heard() or not real.alive() or player.poll() is not None,
-                             120)
+        flowing = wait_state(
+            lambda: flow.all_heard() or not real.alive() or player.poll() is not None, 120)
         heard, alive, played = flow.counts['/foveation/image'], real.alive(), player.poll()
     finally:
         def stop_player() -> None:
@@ -103,10 +111,14 @@ def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
                 except subprocess.TimeoutExpired:
                     player.kill()
         codes: list = []
-        stop_all(stop_player, lambda: codes.append(real.stop()))
+        stop_all(flow.close, stop_player, lambda: codes.append(real.stop()))
     out = player.stdout.read() if player is not None else ''
-    assert alive and played is None, f'foveation alive {alive}, player exit {played}: {out[-2000:]}\n{real.log()}'
+    assert alive and played is None, (
+        f'foveation alive {alive}, player exit {played}: {out[-2000:]}\n{real.log()}')
     assert flowing and heard, f'no /foveation/image from the played bag\n{out[-2000:]}\n{real.log()}'
+    # foveated from the bag's images: it keeps their headers
+    foveated = {(m.header.stamp.sec, m.header.stamp.nanosec) for m in flow.messages['/foveation/image']}
+    assert foveated <= _stamps(bag, '/vizzy/left/image_raw'), foveated
     assert player.returncode == 0, out[-2000:]
     assert '/vizzy/left/image_raw:' in out        # the player's counts
-    assert codes == [0], real.log()
+    expect_clean_real_exit(codes[0], real.log(100000), 'the real foveation')

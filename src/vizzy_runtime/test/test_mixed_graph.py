@@ -13,10 +13,12 @@ from pathlib import Path
 import pytest
 
 from vizzy_runtime.launcher import Launcher, load_graph
+from vizzy_runtime.rclpy_compat import graph
 from vizzy_runtime.testing import real_rclpy_python
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mixed_support import Flow, graph_subset, real_launch, stop_all, wait_state  # noqa: E402
+from mixed_support import (GRACE_S, Flow, expect_clean_real_exit, graph_subset,  # noqa: E402
+                           real_launch, stop_all, wait_state)
 
 HEAD = ('sim', 'gaze_controller')
 PERCEPTION = ('foveation', 'stereo_ses', 'cylinder_detector', 'mot_planner')
@@ -31,6 +33,8 @@ OUTPUTS = {
     '/cylinders',                                                    # cylinder_detector
     '/mot/tracks',                                                   # mot_planner
 }
+# a DDS GUID starts with its vendor's id: who really runs each node
+VENDORS = {b'\x01\x0f': 'real rclpy (Fast DDS)', b'\x01\x10': 'bundled (Cyclone DDS)'}
 # waits on state, never on time: generous for a loaded 2-core machine starting 6 nodes
 DEADLINE_S = 150.0
 
@@ -41,29 +45,41 @@ def test_whole_graph_across_vendors(tmp_path, real_side):
     real_nodes, bundled_nodes = (HEAD, PERCEPTION) if real_side == 'head' else (PERCEPTION, HEAD)
     bundled_log = open(tmp_path / 'bundled.log', 'w+')
     bundled = Launcher(load_graph(graph_subset(tmp_path / 'bundled.yaml', bundled_nodes)),
-                       output=bundled_log, grace_s=15.0)  # SIGINT to SIGTERM: a loaded machine
+                       output=bundled_log, grace_s=GRACE_S)
     flow = Flow(OUTPUTS, decode={'/gaze/state'})
 
     def sources() -> set[str]:  # who the gaze controller serves: commands crossed the boundary
         return {m.active_source for m in flow.messages['/gaze/state']} - {''}
 
+    def runtimes() -> dict[str, str]:  # node -> runtime, from ros_discovery_info
+        return {n.name: VENDORS.get(n.participant_gid[:2], n.participant_gid[:2].hex())
+                for n in graph.snapshot() if n.name in HEAD + PERCEPTION}
+
+    expected = {**{n: VENDORS[b'\x01\x0f'] for n in real_nodes},
+                **{n: VENDORS[b'\x01\x10'] for n in bundled_nodes}}
+    graph.snapshot()  # listen from now on
     real = real_launch(graph_subset(tmp_path / 'real.yaml', real_nodes), tmp_path / 'real.log')
     try:
         bundled.start()
-        up = wait_state(lambda: (flow.all_heard() and sources()) or not real.alive()
-                        or any(c is not None for c in bundled.poll().values()), DEADLINE_S)
-        real_alive, bundled_states = real.alive(), bundled.poll()
+        up = wait_state(lambda: (flow.all_heard() and sources() and runtimes() == expected)
+                        or not real.alive() or any(c is not None for c in bundled.poll().values()),
+                        DEADLINE_S)
+        real_alive, bundled_states, found = real.alive(), bundled.poll(), runtimes()
     finally:
         codes: dict = {}
-        stop_all(lambda: codes.update(bundled.stop()), lambda: codes.update(real=real.stop()))
+        stop_all(flow.close, lambda: codes.update(bundled.stop()),
+                 lambda: codes.update(real=real.stop()))
     bundled_log.seek(0)
-    logs = f'--- real ({", ".join(real_nodes)}):\n{real.log()}\n--- bundled:\n{bundled_log.read()[-3000:]}'
+    logs = (f'--- real ({", ".join(real_nodes)}):\n{real.log()}\n'
+            f'--- bundled:\n{bundled_log.read()[-3000:]}')
     assert real_alive and all(c is None for c in bundled_states.values()), (
         f'a side died: real alive {real_alive}, bundled {bundled_states}\n{logs}')
     assert up and not flow.missing(), (
         f'no messages on {sorted(flow.missing())} (heard {flow.counts})\n{logs}')
+    assert found == expected, f'nodes on the wrong runtime (or not seen): {found}\n{logs}'
     assert sources() <= {'foveation', 'stereo_ses', 'mot_planner'} and sources(), (
         f'no gaze command from the perception nodes was served: {sources()}\n{logs}')
     # both launchers stop their nodes cleanly (SIGINT; the real launcher exits 0 once they have)
-    assert codes == {**{n: 0 for n in bundled_nodes}, 'real': 0}, f'unclean exit {codes}\n{logs}'
-    assert 'exit code' not in real.log(100000).replace('(exit code 0)', ''), logs
+    real_code = codes.pop('real')
+    assert codes == {n: 0 for n in bundled_nodes}, f'unclean exit {codes}\n{logs}'
+    expect_clean_real_exit(real_code, real.log(100000), f'the real launcher ({", ".join(real_nodes)})')

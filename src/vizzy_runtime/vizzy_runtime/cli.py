@@ -1,7 +1,7 @@
 """`vizzy`: the ros2 verbs people know, for machines without ROS 2.
 
     vizzy run <package> <executable> [args] [--ros-args ...]
-    vizzy launch [graph.yaml] [--duration S] [--namespace /NS]
+    vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S]
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
     vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag> | reindex <bag>
@@ -39,7 +39,7 @@ def cmd_run(ns: argparse.Namespace) -> int:
 
 def cmd_launch(ns: argparse.Namespace) -> int:
     from .launcher import launch
-    codes = launch(ns.graph, ns.duration, namespace=ns.namespace)
+    codes = launch(ns.graph, ns.duration, namespace=ns.namespace, grace_s=ns.grace)
     failed = {n: c for n, c in codes.items() if c not in (0, None, -2, 130)}
     return 1 if failed else 0
 
@@ -314,6 +314,9 @@ def build_parser() -> argparse.ArgumentParser:
     la.add_argument('--namespace', default='',
                     help='put the whole graph in this namespace (e.g. /head2), like ros2 launch '
                          'vizzy_runtime graph.launch.py namespace:=/head2')
+    la.add_argument('--grace', type=float, default=5.0, metavar='S',
+                    help='on stop, seconds from SIGINT to SIGTERM for nodes still running '
+                         '(default 5; like ros2 launch sigterm_timeout)')
     la.set_defaults(func=cmd_launch)
 
     topic = sub.add_parser('topic', help='inspect topics').add_subparsers(dest='topic_verb', required=True)

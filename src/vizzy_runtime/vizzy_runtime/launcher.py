@@ -261,11 +261,12 @@ class Launcher:
 
 
 def launch(graph_file: str | Path | None = None, duration: float | None = None,
-           env: dict[str, str] | None = None, namespace: str = '') -> dict[str, Any]:
-    """Run a graph (in namespace, '' for the root) until duration or Ctrl-C and stop it cleanly;
-    returns the exit codes."""
+           env: dict[str, str] | None = None, namespace: str = '',
+           grace_s: float = 5.0) -> dict[str, Any]:
+    """Run a graph (in namespace, '' for the root) until duration or Ctrl-C and stop it cleanly
+    (SIGINT, then SIGTERM to nodes still running grace_s seconds later); returns the exit codes."""
     graph = load_graph(graph_file or default_graph_file())
-    launcher = Launcher(graph, env=env, namespace=namespace)
+    launcher = Launcher(graph, env=env, namespace=namespace, grace_s=grace_s)
     try:
         launcher.start()
         launcher.wait(duration)
