@@ -47,8 +47,9 @@ def _qos(kind: str):
     return qos_profile_sensor_data if kind == 'be' else QoSProfile(depth=5)
 
 
-def _spin_until(node, rclpy, stop) -> None:
-    while not stop():
+def _spin_until(node, rclpy, stop, limit_s: float = 300.0) -> None:
+    deadline = time.monotonic() + limit_s
+    while not stop() and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.05)
 
 
@@ -145,9 +146,18 @@ def run(pub: str, qos: str, rate: float, duration: float, subs: tuple[str, ...] 
                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         assert child.stdout.readline().strip() == 'ready'
         children[runtime] = child
+    try:
+        return _run_pub(children, pub, qos, rate, duration, len(subs))
+    finally:
+        for child in children.values():
+            if child.poll() is None:
+                child.kill()
+
+
+def _run_pub(children: dict, pub: str, qos: str, rate: float, duration: float, nsubs: int) -> dict:
     python, env = _python(pub)
     out = subprocess.run(_traced([python, __file__, '--role', 'pub', '--qos', qos, '--rate', str(rate),
-                                  '--duration', str(duration), '--subscribers', str(len(subs))],
+                                  '--duration', str(duration), '--subscribers', str(nsubs)],
                                  f'pub-{pub}'),
                          env=env, stdout=subprocess.PIPE, text=True, timeout=duration + 90, check=True)
     result = {'pub': pub, 'qos': qos, 'rate_hz': rate, **json.loads(out.stdout.strip().splitlines()[-1])}

@@ -26,7 +26,7 @@ RECORDED = {
     '/tf': 'tf2_msgs/msg/TFMessage',
     '/tf_static': 'tf2_msgs/msg/TFMessage',                 # latched (transient local)
     '/gaze/state': 'active_vision_msgs/msg/GazeState',
-    '/vizzy/left/image_raw': 'sensor_msgs/msg/Image',       # best effort, 921,600 bytes each
+    '/vizzy/left/image_raw': 'sensor_msgs/msg/Image',       # reliable (REP 2003), 921,600 bytes each
     '/vizzy/right/image_raw': 'sensor_msgs/msg/Image',
     '/vizzy/left/camera_info': 'sensor_msgs/msg/CameraInfo',
 }
