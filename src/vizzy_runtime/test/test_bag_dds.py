@@ -17,7 +17,7 @@ from typing import Callable
 import pytest
 
 # Before the first dds.participant(): keep clear of other processes' domains.
-os.environ['ROS_DOMAIN_ID'] = str(random.randint(100, 200))
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 
 from vizzy_runtime import msgs  # noqa: E402
 from vizzy_runtime.bag import BagReader, BagWriter, QosProfile, Recorder  # noqa: E402

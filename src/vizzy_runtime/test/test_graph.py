@@ -26,7 +26,7 @@ import pytest
 from vizzy_runtime import dds, msgs
 
 if dds._participant is None:  # the process's participant does not exist yet: pick our own domain
-    os.environ['ROS_DOMAIN_ID'] = str(random.randint(100, 200))
+    os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 
 from cyclonedds._clayer import ddspy_take  # noqa: E402
 from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsParticipant,  # noqa: E402

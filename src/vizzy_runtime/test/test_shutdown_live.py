@@ -14,7 +14,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 
 import pytest
 
@@ -85,9 +84,9 @@ def test_destroy_node_waits_for_a_busy_worker_only_so_long(context, capfd):
     try:
         node.worker.put(1)
         assert node.started.wait(10.0)
-        t0 = time.monotonic()
-        node.destroy_node()         # the handle is still in flight
-        assert time.monotonic() - t0 < 2.0
+        node.destroy_node()         # the handle is still in flight, blocked on the gate
+        # destroy_node returned although the handle cannot finish: the wait was bounded
+        assert node.worker._thread.is_alive() and node.published == []
         node.gate.set()             # it finishes after destroy_node: its publish is dropped
         assert wait_until(lambda: not node.worker._thread.is_alive(), 5.0)
         assert node.published == []
