@@ -18,13 +18,13 @@ import threading
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from cyclonedds._clayer import ddspy_take, ddspy_write, ddspy_write_ts
+from cyclonedds._clayer import ddspy_take
 from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl.annotations import final
 import cyclonedds.idl.types as idl
-from cyclonedds.internal import DDS, dds_c_t
+from cyclonedds.internal import DDS, dds_c_t, load_cyclonedds
 from cyclonedds.pub import DataWriter, Publisher
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader, Subscriber
@@ -259,6 +259,34 @@ def _topic(ros_topic: str, typename: str) -> Topic:
         return topic
 
 
+class _SampleContainer(ct.Structure):
+    """What cyclonedds-python's serdata type reads a sample from (ddspy_sample_container_t)."""
+    _fields_ = [('usample', ct.c_void_p), ('usample_size', ct.c_size_t)]
+
+
+_libddsc = load_cyclonedds()
+_dds_write = _libddsc.dds_write
+_dds_write.argtypes = [ct.c_int32, ct.c_void_p]
+_dds_write.restype = ct.c_int32
+_dds_write_ts = _libddsc.dds_write_ts
+_dds_write_ts.argtypes = [ct.c_int32, ct.c_void_p, ct.c_int64]
+_dds_write_ts.restype = ct.c_int32
+
+
+def write_serialized(writer_ref: int, data: bytes, timestamp_ns: int | None = None) -> int:
+    """dds_write of serialized bytes with the GIL released.
+
+    cyclonedds-python's ddspy_write keeps the GIL inside dds_write. When the topic has a reader in
+    this process, local delivery waits for that reader's listener, which a Cyclone thread runs as a
+    Python callback that needs the GIL: a deadlock. A ctypes call releases the GIL for its duration.
+    """
+    buf = ct.c_char_p(data)  # points into `data` itself (no copy); kept alive by this frame
+    container = _SampleContainer(ct.cast(buf, ct.c_void_p), len(data))
+    if timestamp_ns is None:
+        return int(_dds_write(writer_ref, ct.byref(container)))
+    return int(_dds_write_ts(writer_ref, ct.byref(container), timestamp_ns))
+
+
 class RawWriter:
     """A DDS writer for a ROS topic that sends already serialized CDR bytes."""
 
@@ -277,8 +305,7 @@ class RawWriter:
         data = payload if isinstance(payload, bytes) else bytes(payload)
         if len(data) % 4:
             data += b'\0' * (4 - len(data) % 4)
-        ret = ddspy_write(self._writer._ref, data) if timestamp_ns is None \
-            else ddspy_write_ts(self._writer._ref, data, timestamp_ns)
+        ret = write_serialized(self._writer._ref, data, timestamp_ns)
         if ret < 0:
             raise DDSException(ret, f'writing to {self.topic_name}')
 

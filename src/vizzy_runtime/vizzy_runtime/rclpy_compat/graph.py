@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from cyclonedds._clayer import ddspy_take, ddspy_write
+from cyclonedds._clayer import ddspy_take
 from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsParticipant
 from cyclonedds.core import DDSException, InstanceState, Listener
 from cyclonedds.pub import DataWriter
@@ -170,7 +170,7 @@ class _Graph:
             if self._writer is None:
                 self._writer = DataWriter(dds.participant(), self._topic, writer_qos())
             data = bytes(msgs.serialize(build_message(self._gid, self.local_nodes()), TYPENAME))
-            ret = ddspy_write(self._writer._ref, data)
+            ret = dds.write_serialized(self._writer._ref, data)
             if ret < 0:
                 raise DDSException(ret, f'writing {TOPIC_NAME}')
 

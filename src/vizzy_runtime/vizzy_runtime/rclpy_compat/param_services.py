@@ -31,7 +31,7 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any, Callable
 
-from cyclonedds._clayer import ddspy_take, ddspy_write
+from cyclonedds._clayer import ddspy_take
 from cyclonedds.core import DDSException, Listener
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl.annotations import final
@@ -193,7 +193,7 @@ class _Service:
             self._node.get_logger().error(f'[{self.name}] request failed: {type(err).__name__}: {err}')
             return
         if self._client_present(client_writer):
-            ret = ddspy_write(self._writer._ref, encode(header, response, self.response_type))
+            ret = dds.write_serialized(self._writer._ref, encode(header, response, self.response_type))
             if ret < 0:
                 self._node.get_logger().error(f'[{self.name}] reply not sent: {DDSException(ret, "write")}')
 
