@@ -4,6 +4,7 @@
     vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S]
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
+    vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
     vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag> | reindex <bag>
 
 Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
@@ -344,6 +345,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help='seconds to listen for discovery at least; then until every ROS 2 process '
                          'seen has announced its nodes (at most 5 s more)')
     nl.set_defaults(func=cmd_node_list)
+
+    from . import param_cli
+    param_cli.add_parser(sub)
 
     bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(dest='bag_verb', required=True)
     rec = bag.add_parser('record')

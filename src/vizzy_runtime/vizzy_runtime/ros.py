@@ -49,6 +49,7 @@ if USING_REAL_ROS:
     RCLError = _rclpy_impl.RCLError  # e.g. publishing on a context that was shut down
     from rclpy.node import Node  # type: ignore[import-not-found]
     from rclpy.parameter import Parameter  # type: ignore[import-not-found]
+    from rclpy.parameter_client import AsyncParameterClient  # type: ignore[import-not-found]
     from rclpy.qos import (  # type: ignore[import-not-found]
         DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data,
         qos_profile_system_default)
@@ -66,6 +67,7 @@ else:
     from .rclpy_compat.parameter import (  # type: ignore[assignment]
         FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, ParameterType,
         SetParametersResult)
+    from .rclpy_compat.parameter_client import AsyncParameterClient  # type: ignore[assignment]
     from .rclpy_compat.qos import (  # type: ignore[assignment]
         DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data,
         qos_profile_system_default)

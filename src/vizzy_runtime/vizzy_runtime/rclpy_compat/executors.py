@@ -88,7 +88,7 @@ class Executor:
         for node in self.get_nodes():
             for sub in list(node.subscriptions):
                 did |= sub.take_and_dispatch() > 0
-            for srv in list(node.services):
+            for srv in list(node.services) + list(node.clients):
                 if srv.ready:
                     srv.serve()
                     did = True

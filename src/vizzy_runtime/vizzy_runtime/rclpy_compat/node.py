@@ -226,6 +226,7 @@ class Node:
         self.subscriptions: list[Subscription] = []
         self.timers: list[Timer] = []
         self.services: list[Any] = []  # served by the executor (parameter services)
+        self.clients: list[Any] = []  # their replies handled by the executor (parameter clients)
         self._clock = ROSClock()
         self._clock._on_change.append(self.context.notify)  # sim time moved: timers may be due
         self._clock_sub: Subscription | None = None
@@ -356,6 +357,8 @@ class Node:
         remove_rosout_sink(self._logger.name, self._publish_rosout)
         self._rosout_publisher = None  # destroyed with the other publishers below
         param_services.stop(self)  # parameter services hook: their readers, writers and timer go
+        for client in list(self.clients):
+            client.destroy()
         self._parameter_event_publisher = None  # destroyed with the other publishers below
         for pub in list(self.publishers):
             self.destroy_publisher(pub)

@@ -203,13 +203,14 @@ class _Service:
         deadline = time.monotonic() + RESPONSE_READER_WAIT_S
         while True:
             endpoint = self._reader.get_matched_publication_data(client_writer)
-            if endpoint is None:
+            if endpoint is None and client_writer not in self._reader.get_matched_publications():
                 return False
-            clientid = user_data_value(endpoint.qos, 'clientid')
-            if clientid is None or any(
+            # endpoint None while matched: Cyclone's matched-endpoint data can lag the match
+            clientid = None if endpoint is None else user_data_value(endpoint.qos, 'clientid')
+            if endpoint is not None and (clientid is None or any(
                     user_data_value(getattr(self._writer.get_matched_subscription_data(h), 'qos', None),
                                     'clientid') == clientid
-                    for h in self._writer.get_matched_subscriptions()):
+                    for h in self._writer.get_matched_subscriptions())):
                 return True
             if time.monotonic() > deadline:
                 return True  # write anyway: delivered if the reader matches in time, dropped otherwise
