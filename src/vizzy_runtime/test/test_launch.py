@@ -1,8 +1,11 @@
 """The shared graph description: the ROS-less launcher starts every node and stops them cleanly."""
 
 import ast
+import re
+import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -10,7 +13,7 @@ import pytest
 import yaml
 
 from vizzy_runtime import dds
-from vizzy_runtime.launcher import (GRAPH_REMAPS, LaunchError, Launcher, default_graph_file,
+from vizzy_runtime.launcher import (GRAPH_REMAPS, Graph, LaunchError, Launcher, default_graph_file,
                                     find_entry_point, graph_namespace, load_graph, node_command,
                                     node_namespace)
 from vizzy_runtime.testing import wait_until
@@ -124,3 +127,66 @@ def test_default_transport_stays_on_loopback():
     assert '<AllowMulticast>false</AllowMulticast>' in xml
     assert '<Peer address="127.0.0.1"/>' in xml
     assert not dds.lan_mode()
+
+
+def _pid_running(pid: int) -> bool:
+    """True while pid exists and is not a zombie."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return False
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_or_sighup_to_the_launcher_stops_every_node(tmp_path, sig):
+    """What timeout, systemd, docker stop and CI cancels send: no node may outlive the launcher."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from mixed_support import graph_subset
+    graph_file = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller', 'mot_planner'], use_sim_time=False)
+    proc = subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', str(graph_file)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    pids: list[int] = []
+    lines: list[str] = []
+    watchdog = threading.Timer(180, proc.kill)  # a launcher that never gets there fails, not hangs
+    watchdog.start()
+    try:
+        # up: each node has logged its start-up line (signals before rclpy.init are another matter)
+        for line in proc.stdout:
+            lines.append(line)
+            pids += [int(p) for p in re.findall(r'process started with pid \[(\d+)\]', line)]
+            if all(any(f'[{n}-' in ln and 'INFO' in ln and 'launch' not in ln for ln in lines)
+                   for n in ('gaze_controller', 'mot_planner')):
+                break
+        assert len(pids) == 2 and all(_pid_running(p) for p in pids), ''.join(lines)
+        proc.send_signal(sig)
+        out, _ = proc.communicate(timeout=120)
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            proc.kill()
+    text = ''.join(lines) + out
+    assert proc.returncode == 0, text[-3000:]
+    assert f'stopping on {signal.Signals(sig).name}' in text, text[-3000:]
+    assert not [p for p in pids if _pid_running(p)], f'orphaned nodes {pids}:\n{text[-3000:]}'
+
+
+def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path):
+    graph = Graph(nodes=[])
+    log = open(tmp_path / 'launch.log', 'w+')
+    launcher = Launcher(graph, output=log, grace_s=0.5)
+    stubborn = ('import signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+                'print("ready", flush=True); time.sleep(120)')
+    launcher.procs['stubborn'] = subprocess.Popen([sys.executable, '-c', stubborn], stdout=subprocess.PIPE,
+                                                  text=True, start_new_session=True)
+    launcher.procs['crashed'] = subprocess.Popen([sys.executable, '-c', 'raise SystemExit(3)'],
+                                                 start_new_session=True)
+    assert launcher.procs['stubborn'].stdout.readline() == 'ready\n'
+    launcher.procs['crashed'].wait(30)
+    codes = launcher.stop()
+    log.seek(0)
+    text = log.read()
+    assert codes == {'stubborn': -signal.SIGTERM, 'crashed': 3}
+    assert launcher.escalated == {'stubborn': 'SIGTERM after SIGINT'}
+    assert re.search(r'process stubborn \(pid \d+\) still running 0.5 s after SIGINT: sending SIGTERM', text), text
+    assert launcher.failed(codes) == {'crashed': 3}

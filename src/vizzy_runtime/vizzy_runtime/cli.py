@@ -40,8 +40,11 @@ def cmd_run(ns: argparse.Namespace) -> int:
 
 def cmd_launch(ns: argparse.Namespace) -> int:
     from .launcher import launch
-    codes = launch(ns.graph, ns.duration, namespace=ns.namespace, grace_s=ns.grace)
-    failed = {n: c for n, c in codes.items() if c not in (0, None, -2, 130)}
+    launcher = launch(ns.graph, ns.duration, namespace=ns.namespace, grace_s=ns.grace)
+    failed = launcher.failed()
+    for name, code in failed.items():
+        print(f'vizzy: launch: node {name} failed (exit code {code}); see its output above',
+              file=sys.stderr)
     return 1 if failed else 0
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from . import msgs
 from .bag import BagReader, Recorder
 from .convert import image_to_numpy
-from .launcher import Launcher, default_graph_file, load_graph
+from .launcher import Launcher, LaunchStopped, default_graph_file, load_graph, stop_on_signals
 
 REPO = Path(__file__).resolve().parents[3]
 # Topics whose appearance means the graph is up (the camera stream and the gaze loop).
@@ -160,17 +160,19 @@ def main(argv: list[str] | None = None) -> int:
     log = open(out_dir / 'launch.log', 'w')
     launcher = Launcher(graph, output=log)
     counts: dict[str, int] = {}
-    try:
-        launcher.start()
-        if not _wait_for_graph(60):
-            print('demo: the graph did not come up within 60 s; see demo_output/launch.log', file=sys.stderr)
-        print(f'demo: recording all topics for {ns.duration:g} s into {bag_dir}', flush=True)
-        counts = Recorder(bag_dir, exclude=DEMO_EXCLUDE).run(duration=ns.duration)
-    except KeyboardInterrupt:
-        print('demo: interrupted; finishing the bag', file=sys.stderr)
-    finally:
-        codes = launcher.stop()
-        log.close()
+    with stop_on_signals():  # SIGTERM/SIGHUP stop the demo like Ctrl-C: no node left running
+        try:
+            launcher.start()
+            if not _wait_for_graph(60):
+                print('demo: the graph did not come up within 60 s; see demo_output/launch.log', file=sys.stderr)
+            print(f'demo: recording all topics for {ns.duration:g} s into {bag_dir}', flush=True)
+            counts = Recorder(bag_dir, exclude=DEMO_EXCLUDE).run(duration=ns.duration)
+        except KeyboardInterrupt as stop:
+            why = stop if isinstance(stop, LaunchStopped) else 'Ctrl-C'
+            print(f'demo: interrupted ({why}); finishing the bag', file=sys.stderr)
+        finally:
+            codes = launcher.stop()
+            log.close()
 
     summary = summarize(bag_dir, out_dir)
     print(f'\n== Vizzy demo: {sum(counts.values())} messages on {len(summary["topics"])} topics, bag {bag_dir}'
@@ -184,12 +186,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f'  {line}')
     print('\nnodes (exit code after SIGINT; 0 = clean shutdown):')
     for name, code in codes.items():
-        print(f'  {name:20} {code}')
+        extra = f'  (needed {launcher.escalated[name]})' if name in launcher.escalated else ''
+        print(f'  {name:20} {code}{extra}')
     if summary['picture']:
         print(f'\nboth cameras: {summary["picture"]}')
     print(f'node output: {out_dir / "launch.log"}')
-    bad = [n for n, c in codes.items() if c not in (0, None)]
-    return 1 if bad or not summary['topics'] else 0
+    return 1 if launcher.failed(codes) or not summary['topics'] else 0
 
 
 if __name__ == '__main__':

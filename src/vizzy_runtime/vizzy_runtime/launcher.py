@@ -1,8 +1,11 @@
 """The ROS-less launcher: starts the graph of config/graph.yaml, one process per node.
 
 The same YAML drives launch/graph.launch.py under `ros2 launch`, so the graph is described once.
-Ctrl-C (or SIGTERM, or the duration running out) sends SIGINT to every node, like ros2 launch,
-then SIGTERM and SIGKILL to whatever is still running after a grace period.
+Ctrl-C, SIGTERM or SIGHUP to the launcher (what `timeout`, systemd, docker stop and CI cancels
+send), or the duration running out, sends SIGINT to every node, like ros2 launch, then SIGTERM and
+SIGKILL to whatever is still running after a grace period; further signals during that stop are
+ignored, so the launcher never exits with nodes left behind (each node runs in its own session and
+sees no terminal signal of its own). The launcher names each node it had to escalate, and why.
 
 A graph-level namespace (`vizzy launch --namespace /head2`; `namespace:=/head2` under ros2 launch)
 prefixes every node's namespace as launch_ros's PushROSNamespace does (a node's absolute namespace
@@ -193,6 +196,36 @@ def _pump(prefix: str, stream: TextIO, out: TextIO) -> None:
         out.flush()
 
 
+class LaunchStopped(KeyboardInterrupt):
+    """SIGTERM or SIGHUP reached the launcher: stop the graph as Ctrl-C does."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _raise_stop(signum: int, _frame: Any) -> None:
+    raise LaunchStopped(signum)
+
+
+class stop_on_signals:
+    """While active (main thread only), SIGTERM and SIGHUP raise LaunchStopped (a KeyboardInterrupt)
+    so the launcher's clean-up runs instead of the process ending with its nodes orphaned."""
+
+    SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+    def __enter__(self) -> 'stop_on_signals':
+        self._previous: dict[int, Any] = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self._previous[sig] = signal.signal(sig, _raise_stop)
+        return self
+
+    def __exit__(self, *_exc: Any) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+
 class Launcher:
     """Starts and stops a Graph's processes."""
 
@@ -206,6 +239,7 @@ class Launcher:
         self.grace_s = grace_s
         self.output = output or sys.stdout
         self.procs: dict[str, subprocess.Popen[str]] = {}
+        self.escalated: dict[str, str] = {}  # node -> the signal it needed beyond SIGINT, and why
         self._threads: list[threading.Thread] = []
 
     def start(self) -> None:
@@ -241,37 +275,65 @@ class Launcher:
             time.sleep(0.1)
 
     def stop(self) -> dict[str, int | None]:
-        """SIGINT everyone, then escalate; returns exit codes."""
-        for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
-            alive = [p for p in self.procs.values() if p.poll() is None]
-            if not alive:
-                break
-            for proc in alive:
-                try:
-                    os.killpg(proc.pid, sig)
-                except ProcessLookupError:
-                    pass
-            end = time.monotonic() + grace
-            while time.monotonic() < end and any(p.poll() is None for p in alive):
-                time.sleep(0.05)
-        for t in self._threads:
-            t.join(timeout=1.0)
-        self._params_dir.cleanup()   # the namespaced nodes' params files, read at start-up
-        return self.poll()
+        """SIGINT everyone, then escalate; returns exit codes. Nodes that needed SIGTERM or SIGKILL
+        are reported (one line each) and listed in self.escalated. Signals to the launcher are
+        ignored meanwhile: an interrupted stop would leave nodes running."""
+        ignored = {}
+        if threading.current_thread() is threading.main_thread():
+            ignored = {sig: signal.signal(sig, signal.SIG_IGN)
+                       for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+        try:
+            previous: tuple[str, float] | None = None
+            for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
+                alive = {n: p for n, p in self.procs.items() if p.poll() is None}
+                if not alive:
+                    break
+                for name, proc in alive.items():
+                    if previous is not None:
+                        self.escalated[name] = f'{signal.Signals(sig).name} after {previous[0]}'
+                        self.output.write(
+                            f'[WARNING] [launch]: process {name} (pid {proc.pid}) still running '
+                            f'{previous[1]:g} s after {previous[0]}: sending {signal.Signals(sig).name}\n')
+                    try:
+                        os.killpg(proc.pid, sig)
+                    except ProcessLookupError:
+                        pass
+                end = time.monotonic() + grace
+                while time.monotonic() < end and any(p.poll() is None for p in alive.values()):
+                    time.sleep(0.05)
+                previous = (signal.Signals(sig).name, grace)
+            for t in self._threads:
+                t.join(timeout=1.0)
+            self._params_dir.cleanup()   # the namespaced nodes' params files, read at start-up
+            return self.poll()
+        finally:
+            for sig, handler in ignored.items():
+                signal.signal(sig, handler)
+
+    def failed(self, codes: dict[str, int | None] | None = None) -> dict[str, int | None]:
+        """Nodes that really failed: a non-zero exit that is neither the SIGINT they were sent nor
+        the escalation stop() reported."""
+        codes = self.poll() if codes is None else codes
+        return {n: c for n, c in codes.items()
+                if c not in (0, None, -signal.SIGINT, 128 + signal.SIGINT) and n not in self.escalated}
 
 
 def launch(graph_file: str | Path | None = None, duration: float | None = None,
            env: dict[str, str] | None = None, namespace: str = '',
-           grace_s: float = 5.0) -> dict[str, Any]:
-    """Run a graph (in namespace, '' for the root) until duration or Ctrl-C and stop it cleanly
-    (SIGINT, then SIGTERM to nodes still running grace_s seconds later); returns the exit codes."""
+           grace_s: float = 5.0) -> Launcher:
+    """Run a graph (in namespace, '' for the root) until duration, Ctrl-C, SIGTERM or SIGHUP and
+    stop it cleanly (SIGINT, then SIGTERM to nodes still running grace_s seconds later); returns
+    the stopped Launcher (exit codes: poll(); failures: failed(); escalations: escalated)."""
     graph = load_graph(graph_file or default_graph_file())
     launcher = Launcher(graph, env=env, namespace=namespace, grace_s=grace_s)
-    try:
-        launcher.start()
-        launcher.wait(duration)
-    except KeyboardInterrupt:
-        launcher.output.write('[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)\n')
-    finally:
-        codes = launcher.stop()
-    return codes
+    with stop_on_signals():
+        try:
+            launcher.start()
+            launcher.wait(duration)
+        except LaunchStopped as stop:
+            launcher.output.write(f'[WARNING] [launch]: stopping on {stop}\n')
+        except KeyboardInterrupt:
+            launcher.output.write('[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)\n')
+        finally:
+            launcher.stop()
+    return launcher

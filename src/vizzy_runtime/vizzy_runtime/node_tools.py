@@ -522,6 +522,28 @@ def _on_termination_signal(signum: int, frame: Any) -> None:
     _signals_received.append(signum)
 
 
+def _spin_through_faults(node: Any) -> None:
+    """rclpy.spin(node), resumed after an exception raised by a callback that is not the node's
+    own (those are guarded()): e.g. rclpy's TimeSource raises 'Seconds value must not be negative'
+    on a /clock sample with a negative time, which would otherwise end the node. Each such fault is
+    logged (the first, then every 100th) with its count; a stop (signal, shutdown) ends the spin."""
+    faults = 0
+    while True:
+        try:
+            rclpy.spin(node)
+            return
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as exc:
+            if not rclpy.ok():
+                raise
+            faults += 1
+            if faults % 100 == 1:
+                node.get_logger().error(
+                    f'fault {faults} outside the node\'s callbacks, the node keeps running: '
+                    f'{type(exc).__name__}: {exc}')
+
+
 def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
     """The standard main: init, spin node_factory() until Ctrl-C, SIGTERM or shutdown, clean up.
 
@@ -545,7 +567,7 @@ def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
     try:
         rclpy.init(args=args)
         node = node_factory()
-        rclpy.spin(node)
+        _spin_through_faults(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:

@@ -230,6 +230,7 @@ class Node:
         self._clock = ROSClock()
         self._clock._on_change.append(self.context.notify)  # sim time moved: timers may be due
         self._clock_sub: Subscription | None = None
+        self.clock_refused = 0  # /clock samples that were no valid time
         self._destroyed = False
         self._type_warnings: set[tuple[str, str]] = set()
         # as rcl: the node's log records also go out on /rosout (rqt_console, Foxglove's log panel)
@@ -628,6 +629,17 @@ class Node:
         self._clock._set_ros_time_is_active(enabled)
 
     def _on_clock(self, msg: Any) -> None:
+        """A /clock sample moves the node's ROS time; one that is no valid time (negative, or
+        nanosec beyond a second) is refused with a warning (the first, then every 100th) and
+        counted in clock_refused, so junk on /clock cannot stop the node."""
+        sec, nanosec = int(msg.clock.sec), int(msg.clock.nanosec)
+        if sec < 0 or not 0 <= nanosec < 1_000_000_000:
+            self.clock_refused += 1
+            if self.clock_refused % 100 == 1:
+                self.get_logger().warning(
+                    f'/clock: refused sample {self.clock_refused} (sec={sec}, nanosec={nanosec}): '
+                    'not a valid time; the clock keeps its last value')
+            return
         self._clock.set_ros_time_override(Time.from_msg(msg.clock))
 
 
