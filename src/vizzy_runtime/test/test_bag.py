@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -313,6 +314,28 @@ def test_file_cut_inside_a_chunk(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     assert [(m.topic, m.data) for m in got] == [(m[0], m[2]) for m in before]
     assert 'incomplete chunk record' in caplog.records[0].getMessage()
     assert reindex(bag).message_count == len(before)
+
+
+def test_bag_info_never_writes(tmp_path: Path) -> None:
+    """`bag info` on a killed recording reports it unfinished and leaves every byte as it was;
+    only `bag reindex` repairs."""
+    bag = tmp_path / 'cut'
+    write_bag(bag, sample_messages(), chunk_size=1024)
+    file = bag / 'cut_0.mcap'
+    with open(file, 'rb') as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    with open(file, 'r+b') as f:
+        f.truncate(chunks[2].chunk_start_offset + chunks[2].chunk_length // 2)
+    (bag / 'metadata.yaml').unlink()
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}
+    text = bag_info(bag)
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
+    assert 'Unfinished:        cut_0.mcap' in text and 'vizzy bag reindex' in text, text
+    counted = int(re.search(r'Messages: +(\d+)', text).group(1))
+    assert counted == reindex(bag).message_count > 0
+    assert 'Unfinished' not in bag_info(bag)
 
 
 def test_bag_being_recorded_is_read_not_repaired(tmp_path: Path) -> None:

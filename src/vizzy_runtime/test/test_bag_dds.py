@@ -154,3 +154,41 @@ def test_recorder_skips_excluded_topics(tmp_path):
     recorder.stop()
     thread.join(20)
     assert set(BagReader(tmp_path / 'bag').topics) == {'/keep_me'}
+
+
+FULL_DISK_RECORDER = textwrap.dedent('''
+    import resource, signal, sys
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past the limit, writes fail (EFBIG) as on a full disk
+    resource.setrlimit(resource.RLIMIT_FSIZE, (600_000, 600_000))
+    from vizzy_runtime.cli import main
+    sys.exit(main(sys.argv[1:]))
+''')
+
+
+def test_a_full_disk_ends_recording_with_one_line_and_a_readable_bag(tmp_path: Path) -> None:
+    from vizzy_runtime import dds
+    writer = dds.RawWriter('/filler', 'std_msgs/msg/String', dds.QoS(reliable=True, depth=50))
+    bag = tmp_path / 'bag'
+    recorder = subprocess.Popen([sys.executable, '-c', FULL_DISK_RECORDER, 'bag', 'record', '-o', str(bag),
+                                 '/filler'], env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+    try:
+        wait_for(lambda: writer.matched_count() > 0 or recorder.poll() is not None, 30, 'the recorder')
+        rng = random.Random(1)
+        deadline = time.monotonic() + 60
+        i = 0
+        while recorder.poll() is None and time.monotonic() < deadline:  # incompressible text
+            writer.write(wire(f'{i} ' + ''.join(rng.choice('abcdefghij0123456789') for _ in range(20_000))))
+            i += 1
+            time.sleep(0.002)
+        _out, err = recorder.communicate(timeout=60)
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+    lines = err.strip().splitlines()
+    assert recorder.returncode == 2, err
+    assert 'Traceback' not in err and lines[-1].startswith('vizzy: ') and 'File too large' in lines[-1], err
+    assert 'vizzy bag reindex' in lines[-1], err
+    reader = BagReader(bag, repair=False)  # readable as it is, up to its last complete chunk
+    got = [m.data for m in reader.messages()]
+    assert got and all(d[8:].split(b' ', 1)[0].isdigit() for d in got)

@@ -119,6 +119,10 @@ def test_cli_reports_errors_in_one_line():
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.strip() == "vizzy: package 'nope_pkg' not found or has no executables (run `make setup`)"
+    proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'bag', 'record', '-d', '1'],
+                          capture_output=True, text=True, timeout=60)
+    assert (proc.returncode, proc.stderr.strip()) == (
+        2, 'vizzy: bag record: give topics to record or -a/--all (as ros2 bag record)')
 
 
 def test_default_transport_stays_on_loopback():

@@ -276,7 +276,9 @@ def _print_counts(counts: dict[str, int]) -> None:
 
 def cmd_bag_record(ns: argparse.Namespace) -> int:
     from .bag import Recorder, default_bag_name
-    topics = None if ns.all or not ns.topics else ns.topics
+    if not ns.all and not ns.topics:
+        return _die('bag record: give topics to record or -a/--all (as ros2 bag record)')
+    topics = None if ns.all else ns.topics
     _print_counts(Recorder(ns.output or default_bag_name(), topics, exclude=ns.exclude_topics or (),
                            include_hidden=ns.include_hidden).run(ns.duration))
     return 0

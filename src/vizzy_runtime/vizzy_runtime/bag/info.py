@@ -38,11 +38,12 @@ def bag_info(bag_dir: str | os.PathLike[str]) -> str:
     one line per topic with type, count and serialization format).
 
     Args:
-        bag_dir: the bag directory (a killed recording is repaired first, see BagReader).
+        bag_dir: the bag directory. Never written: a killed recording is read as far as its
+            complete chunks go and reported as unfinished (`vizzy bag reindex` repairs it).
 
     Raises BagError when it is not a readable bag.
     """
-    reader = BagReader(bag_dir)
+    reader = BagReader(bag_dir, repair=False)
     meta = reader.metadata
     files = [f.name for f in reader.files]
     start = reader.start_time_ns if reader.message_count else 0
@@ -61,4 +62,8 @@ def bag_info(bag_dir: str | os.PathLike[str]) -> str:
                    f'Serialization Format: {t.serialization_format}' for t in topics]
     lines.append('Topic information: ' + f'\n{_INDENT}'.join(topic_lines))
     lines += ['Service:           0', 'Service information: ']
+    if reader.unfinished_files:
+        lines.append('Unfinished:        ' + ', '.join(f.name for f in reader.unfinished_files)
+                     + ' (a killed recording, counted up to its last complete chunk; '
+                     '`vizzy bag reindex` repairs it)')
     return '\n'.join(lines) + '\n'

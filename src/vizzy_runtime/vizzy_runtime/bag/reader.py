@@ -343,6 +343,12 @@ class BagReader:
         self._types = {t.name: t.type for t in self.metadata.topics}
         self._definitions: dict[str, tuple[str, str]] | None = None
 
+    @property
+    def unfinished_files(self) -> list[Path]:
+        """Storage files read by scanning only: unfinished, left as they are (repair=False, a
+        read-only directory, or still being recorded)."""
+        return sorted(self._scanned)
+
     def _reindex(self, repair: bool) -> BagMetadata:
         reason = 'repair=False' if not repair else 'read-only directory'
         if repair and os.access(self.path, os.W_OK):

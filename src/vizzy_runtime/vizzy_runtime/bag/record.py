@@ -12,7 +12,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, Iterable
 
-from .common import BagError, BagMetadata, QosProfile
+from .common import BagError, BagMetadata, QosProfile, one_line
 from .writer import BagWriter
 
 log = logging.getLogger('vizzy_runtime.bag')
@@ -124,7 +124,11 @@ class Recorder:
             for sig, handler in old.items():
                 signal.signal(sig, handler)
         if self._error is not None:
-            raise self._error
+            if self.metadata is None:  # the bag could not be finished (disk full, I/O error)
+                raise BagError(f'{one_line(self._error)}; recording stopped: {self.output_dir} '
+                               'keeps what was written up to its last complete chunk '
+                               '(`vizzy bag reindex` finishes it once there is space)')
+            raise BagError(f'{one_line(self._error)}; recording stopped, bag finished')
         counts = writer.counts
         log.info('recorded %d messages on %d topics into %s', sum(counts.values()), len(counts),
                  self.output_dir)

@@ -230,7 +230,10 @@ class BagWriter:
             except OSError as exc:
                 raise BagError(f'{self.file_path}: finishing failed: {exc.strerror}') from None
             finally:
-                self._file.close()
+                try:
+                    self._file.close()
+                except OSError:
+                    pass  # the finishing error above says it; the buffered tail is lost
             meta.write(self.path)
             return meta
 
