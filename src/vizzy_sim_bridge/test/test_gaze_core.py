@@ -15,7 +15,7 @@ import pytest
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
     LEFT_OPTICAL_FRAME, MIN_JERK_PEAK, RIGHT_OPTICAL_FRAME, Claim, GazeError, GazeSplit,
-    GazeStatus, MinimumJerk, arbitrate, clamp_joint_targets, cyclopean_ray, fixation_point,
+    GazeStatus, MinimumJerk, arbitrate, cyclopean_ray, fixation_point, joint_targets,
     home_posture, joint_limits, pursuit_step, saccade_duration, solve_fixation, velocity_limits)
 
 # The test camera of the brief: 640x480, 85.4 deg horizontal field of view, no distortion.
@@ -186,18 +186,21 @@ def test_non_finite_points_are_rejected_naming_the_coordinate() -> None:
 
 # --- joint targets -------------------------------------------------------------------------------
 
-def test_joint_targets_outside_the_limits_are_clamped_with_a_warning() -> None:
+def test_joint_targets_outside_the_limits_are_refused_as_unreachable() -> None:
     current = home_posture()
-    target, warnings = clamp_joint_targets(['l_eye_joint', 'neck_pan_joint'], [3.0, 0.1], current)
-    assert target[IDX['l_eye_joint']] == HI[IDX['l_eye_joint']]
-    assert target[IDX['neck_pan_joint']] == 0.1
-    assert len(warnings) == 1 and 'l_eye_joint target 3.0000 rad clamped' in warnings[0]
-    # joints not named keep their current target
+    with pytest.raises(GazeError) as err:
+        joint_targets(['l_eye_joint', 'neck_pan_joint'], [3.0, 0.1], current)
+    assert err.value.status == GazeStatus.REJECTED_UNREACHABLE
+    assert 'l_eye_joint target 3.0000 rad outside its limits' in str(err.value)
+    assert 'neck_pan_joint' not in str(err.value)
+    # on the limits (and a float hair beyond) is accepted; joints not named keep their target
     current = (LO + HI) / 2
-    target, warnings = clamp_joint_targets(['r_eye_joint'], [-9.0], current)
-    assert target[IDX['r_eye_joint']] == LO[IDX['r_eye_joint']]
-    np.testing.assert_array_equal(np.delete(target, IDX['r_eye_joint']),
-                                  np.delete(current, IDX['r_eye_joint']))
+    i = IDX['r_eye_joint']
+    target = joint_targets(['r_eye_joint'], [LO[i] - 1e-12], current)
+    assert target[i] == LO[i]
+    np.testing.assert_array_equal(np.delete(target, i), np.delete(current, i))
+    target = joint_targets(['l_eye_joint', 'neck_pan_joint'], [HI[IDX['l_eye_joint']], 0.1], current)
+    assert target[IDX['l_eye_joint']] == HI[IDX['l_eye_joint']] and target[IDX['neck_pan_joint']] == 0.1
 
 
 @pytest.mark.parametrize('names, positions, status, words', [
@@ -209,7 +212,7 @@ def test_joint_targets_outside_the_limits_are_clamped_with_a_warning() -> None:
 ])
 def test_malformed_joint_targets_are_rejected(names, positions, status, words) -> None:
     with pytest.raises(GazeError) as err:
-        clamp_joint_targets(names, positions, home_posture())
+        joint_targets(names, positions, home_posture())
     assert err.value.status == status and words in str(err.value)
 
 

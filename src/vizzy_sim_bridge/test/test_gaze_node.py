@@ -203,14 +203,20 @@ def test_bad_commands_are_rejected_and_reported(head_and_controller):
         state = _wait_status(head, spin, n, status, words)
         assert state.active_source == ''  # nothing accepted
     assert not head.commands  # the head was never moved
-    # out-of-range joint targets are clamped, accepted, and driven to
+    # out-of-range joint targets are refused (GazeState.msg): the head does not move for them
     lo, hi = joint_limits()
     i = NAMES.index('l_eye_joint')
     n = len(head.states)
+    head.send(**base, mode=GazeCommand.MODE_JOINT_TARGETS, joint_names=['l_eye_joint', 'neck_pan_joint'],
+              joint_positions=[5.0, 0.1])
+    state = _wait_status(head, spin, n, GazeState.STATUS_REJECTED_UNREACHABLE,
+                         'l_eye_joint target 5.0000 rad outside its limits')
+    assert state.active_source == '' and not head.commands
+    # on the limit: accepted and driven to
+    n = len(head.states)
     head.send(**base, mode=GazeCommand.MODE_JOINT_TARGETS, joint_names=['l_eye_joint'],
-              joint_positions=[5.0])
-    state = _wait_status(head, spin, n, GazeState.STATUS_OK, 'clamped', source='test')
-    assert 'l_eye_joint' in state.status_message
+              joint_positions=[hi[i]])
+    _wait_status(head, spin, n, GazeState.STATUS_OK, source='test')
     assert wait_until(lambda: head.commands and head.commands[-1][1][i] == hi[i], TIMEOUT,
                       spin=spin)
 

@@ -11,8 +11,8 @@ What it does with a command (the ROS-free parts are in core/gaze.py):
 1. Validation. NaN/inf (point, targets, hold_time) -> STATUS_REJECTED_NAN; a frame_id not in
    the tf tree -> REJECTED_UNKNOWN_FRAME; a point behind the head, too near or far, or beyond the
    joint limits -> REJECTED_UNREACHABLE; unknown mode/motion/joint or mismatched lengths ->
-   REJECTED_INVALID. Joint targets beyond the limits are clamped (status OK, a warning logged
-   and put in status_message). Joints a joint-target command does not name keep their target.
+   REJECTED_INVALID. Joint targets beyond a joint's limits -> REJECTED_UNREACHABLE too (the head
+   does not move for them). Joints a joint-target command does not name keep their target.
 2. A fixation point is transformed into base_link (latest tf) and solved by inverse kinematics
    (core.gaze.solve_fixation: neck/eye split, then both eyes exactly on the point).
 3. Arbitration (core.gaze.arbitrate): a higher priority always takes over, at once, even
@@ -56,7 +56,7 @@ from vizzy_runtime.tf import TransformBuffer, TransformListener
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
     BASE_FRAME, Claim, GazeError, GazeSplit, GazeStatus, MinimumJerk, arbitrate,
-    check_finite_point, clamp_joint_targets, fixation_point, home_posture, pursuit_step,
+    check_finite_point, fixation_point, home_posture, joint_targets, pursuit_step,
     saccade_duration, solve_fixation, velocity_limits)
 
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
@@ -228,7 +228,6 @@ class GazeControllerNode(Node):
             raise GazeError(GazeStatus.REJECTED_NAN, f'hold_time is {hold}')
         if hold < 0.0:
             raise GazeError(GazeStatus.REJECTED_INVALID, f'hold_time must be >= 0, got {hold}')
-        warnings: list[str] = []
         if cmd.mode == GazeCommand.MODE_FIXATION_POINT:
             point = check_finite_point((cmd.fixation_point.x, cmd.fixation_point.y,
                                         cmd.fixation_point.z))
@@ -246,8 +245,7 @@ class GazeControllerNode(Node):
             target, fixation = solution.joints, solution.point
         elif cmd.mode == GazeCommand.MODE_JOINT_TARGETS:
             reference = self._target if self._setpoint is not None else self._current()
-            target, warnings = clamp_joint_targets(list(cmd.joint_names),
-                                                   list(cmd.joint_positions), reference)
+            target = joint_targets(list(cmd.joint_names), list(cmd.joint_positions), reference)
             fixation = fixation_point(target, self._p['max_fixation_distance_m'])
         else:
             raise GazeError(GazeStatus.REJECTED_INVALID,
@@ -266,12 +264,9 @@ class GazeControllerNode(Node):
         self._claim = Claim(source, priority, now, hold,
                             reached=None if self._in_saccade else now)
         self._fixation = fixation
-        notes = list(warnings)
+        notes = []
         if previous is not None and previous.source != source and previous.held(now):
             notes.append(f'preempted {previous.source!r} (priority {previous.priority})')
-        for warning in warnings:
-            self.get_logger().warning(f'{self._gaze_topic}: from {source!r}: {warning}',
-                                      throttle_duration_sec=1.0)
         self._status, self._status_message = GazeStatus.OK, '; '.join(notes)
 
     # --- motion -----------------------------------------------------------------------------------

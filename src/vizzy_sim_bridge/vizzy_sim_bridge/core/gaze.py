@@ -203,13 +203,16 @@ def check_finite_point(point: Sequence[float]) -> np.ndarray:
     return p
 
 
-def clamp_joint_targets(names: Sequence[str], positions: Sequence[float],
-                        current: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Joint targets (JOINT_NAMES order; joints not named keep current) and clamping warnings.
+# Targets this far beyond a limit [rad] still count as on it (float round trips of the limit).
+JOINT_LIMIT_TOLERANCE_RAD = 1e-9
 
-    Targets outside the joint limits are clamped to them, with one warning each. Raises GazeError:
-    REJECTED_INVALID for no joints, a length mismatch, an unknown or repeated joint;
-    REJECTED_NAN for a non-finite target.
+
+def joint_targets(names: Sequence[str], positions: Sequence[float], current: np.ndarray) -> np.ndarray:
+    """Joint targets in JOINT_NAMES order; joints not named keep current.
+
+    Raises GazeError, as GazeState.msg defines: REJECTED_INVALID for no joints, a length
+    mismatch, an unknown or repeated joint; REJECTED_NAN for a non-finite target;
+    REJECTED_UNREACHABLE for a target outside its joint's limits (the head is not moved).
     """
     names = list(names)
     values = [float(v) for v in positions]
@@ -227,16 +230,18 @@ def clamp_joint_targets(names: Sequence[str], positions: Sequence[float],
     for name, value in zip(names, values):
         if not math.isfinite(value):
             raise GazeError(GazeStatus.REJECTED_NAN, f'{name} target is {value}')
-    target = np.array(current, dtype=float)
-    warnings = []
+    outside = []
     for name, value in zip(names, values):
         lo, hi = kinematics.JOINT_LIMITS[name]
-        clamped = min(max(value, lo), hi)
-        if clamped != value:
-            warnings.append(f'{name} target {value:.4f} rad clamped to {clamped:.4f} '
-                            f'(limits [{lo:.4f}, {hi:.4f}])')
-        target[_index(name)] = clamped
-    return target, warnings
+        if not lo - JOINT_LIMIT_TOLERANCE_RAD <= value <= hi + JOINT_LIMIT_TOLERANCE_RAD:
+            outside.append(f'{name} target {value:.4f} rad outside its limits [{lo:.4f}, {hi:.4f}]')
+    if outside:
+        raise GazeError(GazeStatus.REJECTED_UNREACHABLE, '; '.join(outside))
+    target = np.array(current, dtype=float)
+    for name, value in zip(names, values):
+        lo, hi = kinematics.JOINT_LIMITS[name]
+        target[_index(name)] = min(max(value, lo), hi)  # within the tolerance: onto the limit
+    return target
 
 
 # --- inverse kinematics ---------------------------------------------------------------------------
