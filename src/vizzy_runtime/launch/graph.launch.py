@@ -74,6 +74,10 @@ def generate_launch_description() -> LaunchDescription:
         else:
             parameters.append({'use_sim_time': ParameterValue(
                 LaunchConfiguration('use_sim_time'), value_type=bool)})
+        respawn = {'respawn': bool(entry.get('respawn', graph.get('respawn', False))),
+                   'respawn_delay': float(entry.get('respawn_delay', graph.get('respawn_delay', 0.0)))}
+        if 'respawn_max_retries' in entry:
+            respawn['respawn_max_retries'] = int(entry['respawn_max_retries'])
         group.append(Node(
             package=entry['package'],
             executable=entry['executable'],
@@ -82,6 +86,7 @@ def generate_launch_description() -> LaunchDescription:
             parameters=parameters,
             remappings=[(str(k), str(v)) for k, v in (entry.get('remappings') or {}).items()],
             output='screen',
+            **respawn,
         ))
     actions.append(GroupAction(group))
     return LaunchDescription(actions)

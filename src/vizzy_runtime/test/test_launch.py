@@ -1,6 +1,7 @@
 """The shared graph description: the ROS-less launcher starts every node and stops them cleanly."""
 
 import ast
+import os
 import re
 import signal
 import subprocess
@@ -13,7 +14,7 @@ import pytest
 import yaml
 
 from vizzy_runtime import dds
-from vizzy_runtime.launcher import (GRAPH_REMAPS, Graph, LaunchError, Launcher, default_graph_file,
+from vizzy_runtime.launcher import (GRAPH_REMAPS, Graph, LaunchError, Launcher, NodeSpec, default_graph_file,
                                     find_entry_point, graph_namespace, load_graph, node_command,
                                     node_namespace)
 from vizzy_runtime.testing import wait_until
@@ -108,6 +109,13 @@ def test_bad_graphs_are_clear_errors(tmp_path):
     bad.write_text('nodes:\n  - package: foveation_node\n')
     with pytest.raises(LaunchError, match='lacks executable'):
         load_graph(bad)
+    bad.write_text('respawn_delay: -1\nnodes: []\n')
+    with pytest.raises(LaunchError, match=r'graph: respawn_delay must be seconds in \[0, 3600\)'):
+        load_graph(bad)
+    bad.write_text('nodes:\n  - {package: p, executable: e, respawn: "yes"}\n')
+    with pytest.raises(LaunchError, match='node e: respawn must be true or false'):
+        load_graph(bad)
+    assert load_graph(default_graph_file()).respawns(load_graph(default_graph_file()).nodes[0]) == (True, 0.2)
     with pytest.raises(LaunchError, match="no executable 'nope' in package 'foveation_node'"):
         find_entry_point('foveation_node', 'nope')
     with pytest.raises(LaunchError, match="package 'nope_pkg' not found"):
@@ -194,3 +202,66 @@ def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path
     assert launcher.escalated == {'stubborn': 'SIGTERM after SIGINT'}
     assert re.search(r'process stubborn \(pid \d+\) still running 0.5 s after SIGINT: sending SIGTERM', text), text
     assert launcher.failed(codes) == {'crashed': 3}
+
+
+def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
+    """SIGKILL a node of a respawning graph: the launcher starts it again and /gaze/state flows
+    from the new process. Prints the time from the kill to the first new message (the respawn
+    time; not asserted: tests must pass on a loaded machine)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from mixed_support import graph_subset
+    path = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller'], use_sim_time=False)
+    data = yaml.safe_load(path.read_text())
+    data.update(respawn=True, respawn_delay=0.0)
+    path.write_text(yaml.safe_dump(data))
+    log = open(tmp_path / 'launch.log', 'w+')
+    launcher = Launcher(load_graph(path), output=log)
+    reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState', dds.QoS(reliable=False))
+    try:
+        launcher.start()
+        assert wait_until(lambda: bool(reader.take(8)), 60), 'gaze_controller never published'
+        first = launcher.procs['gaze_controller']
+        killed_at = time.monotonic()
+        os.killpg(first.pid, signal.SIGKILL)
+        assert wait_until(lambda: first.poll() is not None, 30)
+        reader.take(64)  # what the first process sent before it died
+        assert wait_until(lambda: launcher.procs['gaze_controller'] is not first and bool(reader.take(8)), 60)
+        back_s = time.monotonic() - killed_at
+        running = launcher.poll()
+    finally:
+        codes = launcher.stop()
+        dds.delete(reader)
+    log.seek(0)
+    text = log.read()
+    print(f'respawn: /gaze/state flowing again {back_s:.2f} s after SIGKILL')
+    assert launcher.respawned == {'gaze_controller': 1} and running == {'gaze_controller': None}, text
+    assert 'process gaze_controller has finished (exit code -9); respawning in 0 s' in text, text
+    assert re.search(r'process started with pid \[\d+\]: gaze_controller \(respawn 1\)', text), text
+    assert codes == {'gaze_controller': 0}, text
+
+
+def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
+    graph = Graph(nodes=[NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'bad', respawn_max_retries=1,
+                                  arguments=['--ros-args', '-p', 'control_rate_hz:=-5.0']),
+                         NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'twice', respawn_max_retries=1,
+                                  arguments=['--ros-args', '-p', 'use_sim_time:=false'])],
+                  respawn=True, respawn_delay=0.0)
+    log = open(tmp_path / 'launch.log', 'w+')
+    launcher = Launcher(graph, output=log)
+    try:
+        launcher.start()
+        assert wait_until(lambda: launcher.poll()['bad'] is not None, 60)
+        for _ in range(2):  # killed, respawned once, killed again: no more
+            assert wait_until(lambda: launcher.poll()['twice'] is None, 60)
+            proc = launcher.procs['twice']
+            os.killpg(proc.pid, signal.SIGKILL)
+            assert wait_until(lambda: proc.poll() is not None, 30)
+        launcher.wait(60)  # returns: every node has exited for good
+        codes = launcher.poll()
+    finally:
+        launcher.stop()
+    log.seek(0)
+    text = log.read()
+    assert codes == {'bad': 2, 'twice': -9}, text
+    assert launcher.respawned == {'twice': 1}, text
+    assert 'process bad has finished (exit code 2) (a start-up error: not respawned)' in text, text

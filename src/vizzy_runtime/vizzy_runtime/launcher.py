@@ -76,12 +76,21 @@ class NodeSpec:
     remappings: dict[str, str] = field(default_factory=dict)
     arguments: list[str] = field(default_factory=list)
     use_sim_time: bool | None = None  # None: the graph's value
+    respawn: bool | None = None  # None: the graph's value
+    respawn_delay: float | None = None  # [s]; None: the graph's value
+    respawn_max_retries: int = -1  # as launch: -1 = no limit
 
 
 @dataclass
 class Graph:
     nodes: list[NodeSpec]
     use_sim_time: bool = False
+    respawn: bool = False
+    respawn_delay: float = 0.0
+
+    def respawns(self, spec: NodeSpec) -> tuple[bool, float]:
+        return (self.respawn if spec.respawn is None else spec.respawn,
+                self.respawn_delay if spec.respawn_delay is None else spec.respawn_delay)
 
 
 def share_dir(package: str) -> Path:
@@ -112,19 +121,39 @@ def load_graph(path: str | Path) -> Graph:
         raise LaunchError(f'graph file {p}: not valid YAML ({exc})') from None
     if not isinstance(data, dict) or not isinstance(data.get('nodes'), list):
         raise LaunchError(f'graph file {p}: expected a mapping with a list under "nodes"')
+    def respawn_fields(where: str, entry: dict[str, Any]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if 'respawn' in entry:
+            if not isinstance(entry['respawn'], bool):
+                raise LaunchError(f'graph file {p}: {where}: respawn must be true or false')
+            out['respawn'] = entry['respawn']
+        if 'respawn_delay' in entry:
+            delay = entry['respawn_delay']
+            if isinstance(delay, bool) or not isinstance(delay, (int, float)) or not 0 <= delay < 3600:
+                raise LaunchError(f'graph file {p}: {where}: respawn_delay must be seconds in [0, 3600)')
+            out['respawn_delay'] = float(delay)
+        if 'respawn_max_retries' in entry:
+            retries = entry['respawn_max_retries']
+            if isinstance(retries, bool) or not isinstance(retries, int) or retries < -1:
+                raise LaunchError(f'graph file {p}: {where}: respawn_max_retries must be an integer >= -1')
+            out['respawn_max_retries'] = retries
+        return out
+
     nodes = []
     for i, entry in enumerate(data['nodes']):
         missing = [k for k in ('package', 'executable') if not isinstance(entry, dict) or k not in entry]
         if missing:
             raise LaunchError(f'graph file {p}: node #{i} lacks {", ".join(missing)}')
+        name = entry.get('name') or entry['executable']
         nodes.append(NodeSpec(
             package=entry['package'], executable=entry['executable'],
-            name=entry.get('name') or entry['executable'], namespace=entry.get('namespace') or '',
+            name=name, namespace=entry.get('namespace') or '',
             parameters=list(entry.get('parameters') or []),
             remappings=dict(entry.get('remappings') or {}),
             arguments=[str(a) for a in entry.get('arguments') or []],
-            use_sim_time=entry.get('use_sim_time')))
-    return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)))
+            use_sim_time=entry.get('use_sim_time'), **respawn_fields(f'node {name}', entry)))
+    graph_wide = respawn_fields('graph', {k: v for k, v in data.items() if k != 'respawn_max_retries'})
+    return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)), **graph_wide)
 
 
 def find_entry_point(package: str, executable: str) -> importlib.metadata.EntryPoint:
@@ -240,37 +269,83 @@ class Launcher:
         self.output = output or sys.stdout
         self.procs: dict[str, subprocess.Popen[str]] = {}
         self.escalated: dict[str, str] = {}  # node -> the signal it needed beyond SIGINT, and why
+        self.respawned: dict[str, int] = {}  # node -> times it was started again
+        self._commands: dict[str, tuple[NodeSpec, list[str], int]] = {}
         self._threads: list[threading.Thread] = []
+        self._stopping = threading.Event()
+        self._reported: set[str] = set()
+        self._pending_respawns = 0
+        self._supervisor: threading.Thread | None = None
 
     def start(self) -> None:
-        commands = [(spec.name, node_command(spec, self.graph.use_sim_time, self.namespace,
-                                             Path(self._params_dir.name)))
+        """Start every node (and the supervisor that reports exits and respawns)."""
+        commands = [(spec, node_command(spec, self.graph.use_sim_time, self.namespace,
+                                        Path(self._params_dir.name)))
                     for spec in self.graph.nodes]
-        for index, (name, cmd) in enumerate(commands, 1):
-            proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                    text=True, bufsize=1, start_new_session=True)
-            self.procs[name] = proc
-            self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: {name}\n')
-            t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output),
-                                 daemon=True)
-            t.start()
-            self._threads.append(t)
+        for index, (spec, cmd) in enumerate(commands, 1):
+            self._commands[spec.name] = (spec, cmd, index)
+            self._spawn(spec.name)
+        self._supervisor = threading.Thread(target=self._supervise, name='launch-supervisor',
+                                            daemon=True)
+        self._supervisor.start()
+
+    def _spawn(self, name: str) -> None:
+        spec, cmd, index = self._commands[name]
+        proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, bufsize=1, start_new_session=True)
+        self.procs[name] = proc
+        again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
+        self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: {name}{again}\n')
+        t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output),
+                             daemon=True)
+        t.start()
+        self._threads.append(t)
+
+    def _supervise(self) -> None:
+        """Report each node's exit; respawn the nodes whose graph entry asks for it (after their
+        respawn_delay, up to respawn_max_retries) until stop() begins. A node that exits with
+        status 2 (a start-up error: bad parameter or argument) is not respawned: it would fail
+        the same way again."""
+        due: dict[str, float] = {}
+        while not self._stopping.is_set():
+            for name, proc in list(self.procs.items()):
+                code = proc.poll()
+                if code is None or name in self._reported:
+                    continue
+                self._reported.add(name)
+                spec = self._commands[name][0]
+                respawn, delay = self.graph.respawns(spec)
+                retries = self.respawned.get(name, 0)
+                level = 'INFO' if code == 0 else 'ERROR'
+                if respawn and code != 2 and (spec.respawn_max_retries < 0
+                                              or retries < spec.respawn_max_retries):
+                    due[name] = time.monotonic() + delay
+                    self.output.write(f'[{level}] [launch]: process {name} has finished (exit code '
+                                      f'{code}); respawning in {delay:g} s\n')
+                else:
+                    why = ' (a start-up error: not respawned)' if respawn and code == 2 else ''
+                    self.output.write(f'[{level}] [launch]: process {name} has finished '
+                                      f'(exit code {code}){why}\n')
+            for name, when in list(due.items()):
+                if time.monotonic() >= when and not self._stopping.is_set():
+                    del due[name]
+                    self.respawned[name] = self.respawned.get(name, 0) + 1
+                    self._reported.discard(name)
+                    self._spawn(name)
+            self._pending_respawns = len(due)
+            self._stopping.wait(0.05)
 
     def poll(self) -> dict[str, int | None]:
-        return {name: proc.poll() for name, proc in self.procs.items()}
+        return {name: proc.poll() for name, proc in list(self.procs.items())}
 
     def wait(self, duration: float | None = None) -> None:
-        """Until duration passes, every node exits, or Ctrl-C; reports nodes that die early."""
+        """Until duration passes or every node has exited for good (the supervisor reports exits
+        and respawns)."""
         deadline = None if duration is None else time.monotonic() + duration
-        reported: set[str] = set()
         while deadline is None or time.monotonic() < deadline:
             states = self.poll()
-            for name, code in states.items():
-                if code is not None and name not in reported:
-                    reported.add(name)
-                    level = 'INFO' if code == 0 else 'ERROR'
-                    self.output.write(f'[{level}] [launch]: process {name} has finished (exit code {code})\n')
-            if all(code is not None for code in states.values()):
+            if (all(code is not None for code in states.values()) and not self._pending_respawns
+                    and set(states) <= self._reported):
                 return
             time.sleep(0.1)
 
@@ -282,6 +357,9 @@ class Launcher:
         if threading.current_thread() is threading.main_thread():
             ignored = {sig: signal.signal(sig, signal.SIG_IGN)
                        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+        self._stopping.set()  # no respawn from here on
+        if self._supervisor is not None:
+            self._supervisor.join()
         try:
             previous: tuple[str, float] | None = None
             for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
