@@ -378,7 +378,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def guarded(node: Any, what: str, callback: Callable[..., Any] | None = None, *,
-            throttle_s: float = 5.0) -> Any:
+            throttle_s: float = 5.0, topic: str | None = None) -> Any:
     """callback wrapped so that an exception it raises is logged and swallowed, not raised.
 
     One bad message must never end the node: under real rclpy an exception escaping a callback
@@ -387,7 +387,10 @@ def guarded(node: Any, what: str, callback: Callable[..., Any] | None = None, *,
     ExternalShutdownException passes through, and so does, as ExternalShutdownException, a
     failure that only says the node is going away (see publish_from_thread): Ctrl-C shuts the
     context down while a callback may be publishing. Without callback, returns a decorator:
-    guarded(node, what)(callback).
+    guarded(node, what)(callback). With topic, and a node that has an `input_health`
+    (InputHealth), the exception is counted there as a refusal of that topic's input (reason:
+    `<what>: <ExcType>`), which logs it (first time, then throttled) and reports it on
+    /diagnostics.
     """
     def wrap(fn: Callable[..., Any]) -> Callable[..., Any]:
         last = [-math.inf]  # time.monotonic() of the last error logged
@@ -401,6 +404,10 @@ def guarded(node: Any, what: str, callback: Callable[..., Any] | None = None, *,
             except Exception as exc:  # one bad message never kills the node
                 if _going_away(node, exc):
                     raise ExternalShutdownException() from None
+                health = getattr(node, 'input_health', None) if topic is not None else None
+                if health is not None:
+                    health.refuse(topic, f'{what}: {type(exc).__name__}', str(exc))
+                    return None
                 now = time.monotonic()
                 if now - last[0] >= throttle_s:
                     last[0] = now

@@ -85,6 +85,9 @@ class Publisher:
         return self._node.destroy_publisher(self)
 
 
+# A subscription's malformed samples are logged at most this often [s] (each one is counted).
+MALFORMED_LOG_PERIOD_S = 5.0
+
 class Subscription:
     def __init__(self, node: 'Node', msg_type: type, topic: str, callback: Callable[[Any], None],
                  qos: QoSProfile, raw: bool) -> None:
@@ -94,6 +97,8 @@ class Subscription:
         self.callback = callback
         self.qos_profile = qos
         self.raw = raw
+        self.malformed = 0  # samples that could not be decoded (counted, logged throttled)
+        self._malformed_logged = -math.inf
         self._node = node
         self._ready = True  # take whatever arrived before the listener was attached
         self._reader = dds.RawReader(topic, self.typename, qos.to_dds(), on_data=self._on_data)
@@ -137,8 +142,13 @@ class Subscription:
                 try:
                     message = msgs.deserialize(raw, self.typename)
                 except Exception as err:  # noqa: BLE001 - one bad message never kills a node
-                    self._node.get_logger().error(
-                        f'[{self.topic}] dropped a malformed {self.typename} ({len(raw)} bytes): {err}')
+                    self.malformed += 1
+                    now = _time.monotonic()
+                    if now - self._malformed_logged >= MALFORMED_LOG_PERIOD_S:
+                        self._malformed_logged = now
+                        self._node.get_logger().error(
+                            f'{self.topic}: dropped a malformed {self.typename} ({len(raw)} bytes, '
+                            f'{self.malformed} so far): {err}')
                     continue
             self._node._run_callback(self.callback, message, f'subscription {self.topic}')
         return len(samples)

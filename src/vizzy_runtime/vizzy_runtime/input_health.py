@@ -1,0 +1,121 @@
+"""What a node refused of its inputs: counted per topic and reason, logged without flooding, and
+published on /diagnostics the ROS way (rqt_robot_monitor, Foxglove's diagnostics panels).
+
+    self.health = InputHealth(self)                 # in the node's __init__
+    self.health.refuse(self._image_topic, 'unknown encoding', f'{msg.encoding!r}')
+    self.health.accept(self._image_topic)           # a message processed
+
+The first refusal of each (topic, reason) is logged in one line naming node, topic and reason;
+later ones at most once every throttle_s per (topic, reason), with the count so far. Every period_s
+the node publishes one diagnostic_msgs/DiagnosticStatus (name: the node's full name) in a
+DiagnosticArray on /diagnostics: WARN while refusals happened in the last period, else OK, with a
+`<topic>: <reason>` = count entry for every reason seen and `<topic>: accepted` = count for every
+topic that processed messages. On the bundled runtime, samples its subscriptions could not decode
+(malformed CDR) are counted as the reason `malformed CDR`.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+from .ros import message, qos_profile_system_default
+
+DIAGNOSTICS_TOPIC = '/diagnostics'  # absolute, as diagnostic_updater publishes it
+MALFORMED = 'malformed CDR'
+
+
+class InputHealth:
+    """Refusal counters of one node, with their log lines and /diagnostics publisher."""
+
+    def __init__(self, node: Any, *, period_s: float = 1.0, throttle_s: float = 5.0,
+                 hardware_id: str = '') -> None:
+        self._node = node
+        self._throttle_s = throttle_s
+        self._hardware_id = hardware_id
+        self._lock = threading.Lock()
+        self._refused: dict[tuple[str, str], int] = {}
+        self._accepted: dict[str, int] = {}
+        self._logged: dict[tuple[str, str], float] = {}
+        self._refused_at_last_report = 0
+        self._array = message('diagnostic_msgs/msg/DiagnosticArray')
+        self._status = message('diagnostic_msgs/msg/DiagnosticStatus')
+        self._key_value = message('diagnostic_msgs/msg/KeyValue')
+        self._publisher = node.create_publisher(self._array, DIAGNOSTICS_TOPIC,
+                                                qos_profile_system_default)
+        self._timer = node.create_timer(period_s, self._report_safely)
+
+    # --- counting (any thread) ------------------------------------------------------------------
+
+    def refuse(self, topic: str, reason: str, detail: str = '') -> None:
+        """Count a refused input; log it (first time per topic and reason, then throttled)."""
+        key = (topic, reason)
+        now = time.monotonic()
+        with self._lock:
+            count = self._refused.get(key, 0) + 1
+            self._refused[key] = count
+            due = now - self._logged.get(key, -math.inf) >= self._throttle_s
+            if due:
+                self._logged[key] = now
+        if due:
+            more = f' ({count} refused so far)' if count > 1 else ''
+            text = f'{topic}: refused: {reason}' + (f': {detail}' if detail else '') + more
+            self._node.get_logger().warning(text)
+
+    def accept(self, topic: str) -> None:
+        with self._lock:
+            self._accepted[topic] = self._accepted.get(topic, 0) + 1
+
+    def refused(self) -> dict[tuple[str, str], int]:
+        """(topic, reason) -> count, the runtime's malformed samples included."""
+        with self._lock:
+            out = dict(self._refused)
+        for sub in list(getattr(self._node, 'subscriptions', [])):
+            malformed = getattr(sub, 'malformed', 0)
+            if malformed:
+                out[(sub.topic, MALFORMED)] = malformed
+        return out
+
+    def accepted(self) -> dict[str, int]:
+        with self._lock:
+            return dict(self._accepted)
+
+    # --- /diagnostics ---------------------------------------------------------------------------
+
+    def status(self) -> Any:
+        """This node's DiagnosticStatus now (WARN if anything was refused since the last one)."""
+        refused = self.refused()
+        total = sum(refused.values())
+        fresh = total - self._refused_at_last_report
+        self._refused_at_last_report = total
+        status = self._status()
+        status.name = self._node.get_fully_qualified_name()
+        status.hardware_id = self._hardware_id
+        if fresh:
+            status.level = self._status.WARN
+            status.message = f'{fresh} input(s) refused in the last period, {total} in all'
+        else:
+            status.level = self._status.OK
+            status.message = f'inputs OK ({total} refused in all)' if total else 'inputs OK'
+        values = [self._key_value(key=f'{topic}: {reason}', value=str(count))
+                  for (topic, reason), count in sorted(refused.items())]
+        values += [self._key_value(key=f'{topic}: accepted', value=str(count))
+                   for topic, count in sorted(self.accepted().items())]
+        status.values = values
+        return status
+
+    def report(self) -> None:
+        array = self._array()
+        array.header.stamp = self._node.get_clock().now().to_msg()
+        array.status = [self.status()]
+        self._publisher.publish(array)
+
+    def _report_safely(self) -> None:
+        try:
+            self.report()
+        except Exception as exc:  # noqa: BLE001 - a diagnostics failure never ends the node
+            if not self._node.context.ok():
+                return
+            self.refuse(DIAGNOSTICS_TOPIC, 'report failed', f'{type(exc).__name__}: {exc}')
