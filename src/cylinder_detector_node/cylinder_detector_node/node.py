@@ -13,22 +13,41 @@ publishes
   /cylinders          active_vision_msgs/CylinderArray, header = the cloud's
   /cylinders/markers  visualization_msgs/MarkerArray: DELETEALL, then one CYLINDER per cylinder
                       (coloured red -> green by confidence) and a TEXT label above it
+  /diagnostics        diagnostic_msgs/DiagnosticArray, about 1 Hz: the node's input health (below)
 
 The table's "up" is the RANSAC plane normal turned towards the sensor (the core does it), so the
 Table 4.1 "vertical" biases mean "upright on the table" in any sensor frame.
 
 Image pairing: the last IMAGE_BUFFER images are kept; a cloud takes the one with the nearest
-stamp if it is within image_tolerance_s (the simulator stamps both alike). Without a matching
-image, with an image whose size differs from the cloud's, or without a loadable model, the
-cylinders are detected without the classifier (a throttled warning says why). `confidence` is the
-classifier's P(cylinder) when the cluster was classified, else the Eq. 4.4 fit quality;
-`fit_quality` is always Eq. 4.4.
+stamp if it is within image_tolerance_s (the simulator stamps both alike); an image that is no
+readable colour image is refused on arrival (below) and never buffered. Without a matching image,
+with an image whose size differs from the cloud's, or without a loadable model, the cylinders are
+detected without the classifier (a throttled warning says why; the cloud is still accepted).
+`confidence` is the classifier's P(cylinder) when the cluster was classified, else the Eq. 4.4 fit
+quality; `fit_quality` is always Eq. 4.4.
 
 The pipeline runs on a worker thread: the subscription callback only stores the newest cloud, so
 a cloud that arrives while one is being processed replaces any waiting one (older ones are
-dropped, never queued). Bad input (no x/y/z, truncated data, too few finite points, no table,
-nothing on it) is logged (throttled) and answered with an empty CylinderArray. While no cloud
-arrives, an empty CylinderArray goes out every heartbeat_period_s in frame_id.
+dropped, never queued; not counted as refusals). A refused cloud is answered with an empty
+CylinderArray; a valid cloud without a table or with nothing on it is accepted, gives an empty
+CylinderArray and a throttled warning. While no cloud arrives, an empty CylinderArray goes out
+every heartbeat_period_s in frame_id.
+
+Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
+(self.input_health): the first refusal of each (topic, reason) is logged in one line naming node,
+topic and reason, later ones at most every 5 s with the count so far, and /diagnostics carries the
+node's status (WARN while inputs are being refused) with `<topic>: <reason>` = count and
+`<topic>: accepted` = count entries. The reasons (short, stable counter keys; the values are in
+the logged detail):
+  on /vizzy/rgbd/points (CLOUD_REASONS, checked on the worker thread): 'no xyz fields', 'bad
+    field layout' (an unknown PointField datatype, fields outside point_step), 'size
+    inconsistent with data' (fewer data bytes than the points need), 'empty cloud' (no points),
+    'too few finite points' (fewer than min_points, e.g. all NaN), 'failed on a cloud: <ExcType>'
+    (an exception in the callback or the pipeline, node_tools.guarded);
+  on /vizzy/rgbd/image_raw (IMAGE_REASONS, checked on arrival): 'unsupported encoding' (not
+    rgb8/bgr8/rgba8/bgra8), 'empty image', 'step shorter than a row', 'size inconsistent with
+    data', 'failed on an image: <ExcType>'.
+
 Algorithms live in cylinder_detector_node.core; this module only wires them to topics.
 """
 
@@ -47,7 +66,8 @@ from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifie
 from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylinder, FitParams
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import SegmentParams
-from vizzy_runtime.convert import ConversionError, image_to_numpy, pointcloud2_to_array
+from vizzy_runtime.convert import image_to_numpy, pointcloud2_dtype, pointcloud2_to_array
+from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread, replace_timer)
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
@@ -66,7 +86,20 @@ IMAGE_TOPIC = 'image_raw'
 IMAGE_BUFFER = 8
 CYLINDERS_TOPIC = 'cylinders'
 MARKERS_TOPIC = 'cylinders/markers'
-WARN_PERIOD_S = 5.0
+# Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
+NO_XYZ = 'no xyz fields'
+BAD_FIELDS = 'bad field layout'
+SHORT_DATA = 'size inconsistent with data'
+EMPTY_CLOUD = 'empty cloud'
+TOO_FEW_POINTS = 'too few finite points'
+CLOUD_REASONS = (NO_XYZ, BAD_FIELDS, SHORT_DATA, EMPTY_CLOUD, TOO_FEW_POINTS)
+UNSUPPORTED_ENCODING = 'unsupported encoding'
+EMPTY_IMAGE = 'empty image'
+SHORT_STEP = 'step shorter than a row'
+UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
+IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
+COLOUR_CHANNELS = {'rgb8': 3, 'bgr8': 3, 'rgba8': 4, 'bgra8': 4}
+WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
 REPORT_PERIOD_S = 10.0
 
 # The node declares exactly these; each range is the descriptor's, enforced by the middleware.
@@ -140,6 +173,14 @@ def pipeline_params(p: dict[str, Any]) -> tuple[SegmentParams, FitParams]:
     return seg, fit
 
 
+class CloudRefused(ValueError):
+    """A cloud the node cannot use: reason (one of CLOUD_REASONS, a counter key), str = detail."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(detail)
+        self.reason = reason
+
+
 def cloud_problem(msg: Any, min_points: int) -> str | None:
     """Why a cloud cannot be used, or None if it can (vectorized over the points)."""
     try:
@@ -150,18 +191,56 @@ def cloud_problem(msg: Any, min_points: int) -> str | None:
 
 
 def cloud_xyz(msg: Any, min_points: int) -> np.ndarray:
-    """(H, W, 3) float32 xyz of a PointCloud2 (NaN kept); ValueError saying why it is unusable."""
+    """(H, W, 3) float32 xyz of a PointCloud2 (NaN kept); CloudRefused (a ValueError) saying why
+    it is unusable."""
     names = [f.name for f in msg.fields]
     missing = [n for n in ('x', 'y', 'z') if n not in names]
     if missing:
-        raise ValueError(f'no field(s) {", ".join(missing)} (fields: {", ".join(names) or "none"})')
-    points = pointcloud2_to_array(msg)     # ConversionError is a ValueError
-    xyz = np.stack([points['x'], points['y'], points['z']], axis=-1).astype(np.float32, copy=False)
+        raise CloudRefused(NO_XYZ, f'no field(s) {", ".join(missing)} '
+                                   f'(fields: {", ".join(names) or "none"})')
+    try:
+        pointcloud2_dtype(msg)
+    except (ValueError, TypeError) as exc:   # unknown datatype, a field beyond point_step
+        raise CloudRefused(BAD_FIELDS, f'{exc} (point_step {msg.point_step})') from None
+    try:
+        points = pointcloud2_to_array(msg)
+    except ValueError as exc:                # ConversionError: fewer bytes than the points need
+        raise CloudRefused(SHORT_DATA, str(exc)) from None
+    if points.size == 0:
+        raise CloudRefused(EMPTY_CLOUD, f'{msg.width}x{msg.height} points')
+    try:
+        xyz = np.stack([points['x'], points['y'], points['z']], axis=-1).astype(np.float32,
+                                                                               copy=False)
+    except (ValueError, TypeError) as exc:   # e.g. x, y, z with different counts
+        raise CloudRefused(BAD_FIELDS, f'x, y, z: {exc}') from None
     n = int(np.count_nonzero(np.isfinite(xyz.sum(axis=-1))))
     if n < min_points or n == 0:
-        raise ValueError(f'{n} finite points of {points.size}, fewer than '
-                         f'min_points={max(min_points, 1)}')
+        raise CloudRefused(TOO_FEW_POINTS, f'{n} finite points of {points.size}, fewer than '
+                                           f'min_points={max(min_points, 1)}')
     return xyz
+
+
+def image_refusal(msg: Any) -> tuple[str, str] | None:
+    """(reason, detail) of why an input image is no usable colour image, or None if it is:
+    reason is one of IMAGE_REASONS (a counter key), detail names the values."""
+    channels = COLOUR_CHANNELS.get(msg.encoding)
+    if channels is None:
+        return UNSUPPORTED_ENCODING, (f'{msg.encoding!r} is not a colour one '
+                                      f'({", ".join(COLOUR_CHANNELS)})')
+    if msg.width == 0 or msg.height == 0:
+        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
+    row = channels * msg.width
+    if msg.step < row:
+        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
+    size = len(msg.data)
+    if size < msg.step * msg.height:
+        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
+                            f'{msg.step * msg.height} expected')
+    try:
+        rgb_image(msg)
+    except ValueError as exc:                # ConversionError is a ValueError
+        return UNCONVERTIBLE, str(exc)
+    return None
 
 
 def quaternion_z_to(axis: np.ndarray) -> tuple[float, float, float, float]:
@@ -244,7 +323,10 @@ class CylinderDetectorNode(Node):
         self._p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_all,
                                      on_change=self._on_parameters_changed)
         self._params = pipeline_params(self._p)
-        self._warned: dict[str, float] = {}
+        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        # refused inputs, per topic and reason; /diagnostics (before any subscription)
+        self.input_health = InputHealth(self)
+        self.clouds_received = 0           # by the subscription (read by tests)
         self._last_cloud = -math.inf       # time.monotonic() of the last cloud
         self._last_report = -math.inf
         self.frames_processed = 0
@@ -265,18 +347,20 @@ class CylinderDetectorNode(Node):
         # resolved names, for log lines
         self._cloud_topic = self.resolve_topic_name(CLOUD_TOPIC)
         self._image_topic = self.resolve_topic_name(IMAGE_TOPIC)
+        # an exception in a callback (or in the worker) is counted as a refusal of its topic
         self._cloud_sub = self.create_subscription(
-            PointCloud2, CLOUD_TOPIC, guarded(self, f'{self._cloud_topic}: failed on a cloud',
-                                              self._on_cloud), qos_profile_sensor_data)
+            PointCloud2, CLOUD_TOPIC,
+            guarded(self, 'failed on a cloud', self._on_cloud, topic=self._cloud_topic),
+            qos_profile_sensor_data)
         self._image_sub = self.create_subscription(
             Image, IMAGE_TOPIC,
-            guarded(self, f'{self._image_topic}: failed on an image', self._on_image),
+            guarded(self, 'failed on an image', self._on_image, topic=self._image_topic),
             qos_profile_sensor_data)
         # guarded: a heartbeat racing with Ctrl-C ends spin quietly (ExternalShutdownException)
         self._heartbeat = guarded(self, 'heartbeat failed', self._on_heartbeat)
         self._timer = self.create_timer(self._p['heartbeat_period_s'], self._heartbeat)
         self._worker = LatestWorker('cylinder_detector', guarded(
-            self, f'{self._cloud_topic}: failed on a cloud', self.process_cloud))
+            self, 'failed on a cloud', self.process_cloud, topic=self._cloud_topic))
         p = self._p
         self.get_logger().info(
             f'detecting cylinders in {self._cloud_sub.topic_name} onto {self._pub.topic_name} and '
@@ -289,13 +373,19 @@ class CylinderDetectorNode(Node):
 
     def _on_cloud(self, msg: Any) -> None:
         self._last_cloud = time.monotonic()
+        self.clouds_received += 1
         if self._worker.put(msg):
             self.frames_dropped += 1        # the worker is still busy: keep only the newest
 
     def _on_image(self, msg: Any) -> None:
+        problem = image_refusal(msg)
+        if problem:
+            self.input_health.refuse(self._image_topic, *problem)
+            return
         with self._lock:
             self._images.append(msg)
             del self._images[:-IMAGE_BUFFER]
+        self.input_health.accept(self._image_topic)
 
     def _load_classifier(self) -> None:
         """(Re)load the model when use_classifier is on; a missing or bad file is logged and the
@@ -342,8 +432,9 @@ class CylinderDetectorNode(Node):
         if 'use_classifier' in changed or 'classifier_model' in changed:
             self._load_classifier()
 
-    def _warn(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind of problem."""
+    def _warn_throttled(self, kind: str, text: str) -> None:
+        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
+        input (those go to self.input_health)."""
         now = time.monotonic()
         if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
             self._warned[kind] = now
@@ -352,12 +443,12 @@ class CylinderDetectorNode(Node):
     # --- the worker -----------------------------------------------------------------------------
 
     def process_cloud(self, msg: Any) -> Detection | None:
-        """Detect cylinders in one cloud and publish them (an empty array for a bad cloud)."""
+        """Detect cylinders in one cloud and publish them (an empty array for a refused cloud)."""
         t0 = time.perf_counter()
         try:
             xyz = cloud_xyz(msg, self._p['min_points'])
-        except ValueError as exc:
-            self._warn('cloud', f'{self._cloud_topic}: no cylinders: {exc}')
+        except CloudRefused as exc:
+            self.input_health.refuse(self._cloud_topic, exc.reason, f'no cylinders: {exc}')
             self._publish(msg.header, [])
             return None
         seg, fit = self._params
@@ -371,7 +462,8 @@ class CylinderDetectorNode(Node):
                 else:
                     why = problem
             if classifier is None:
-                self._warn('image', f'{self._cloud_topic}: detecting without the classifier: {why}')
+                self._warn_throttled('image', f'{self._cloud_topic}: detecting without the '
+                                              f'classifier: {why}')
         det = detect_cylinders(xyz, seg, fit, image=image, classifier=classifier,
                                classifier_threshold=self._p['classifier_threshold'])
         self.last_classified = classifier is not None
@@ -379,8 +471,10 @@ class CylinderDetectorNode(Node):
         self.last_detection, self.last_frame_ms = det, ms
         self.frames_processed += 1
         if det.plane is None or (not det.cylinders and det.messages):
-            self._warn('pipeline', f'{self._cloud_topic}: no cylinders: {"; ".join(det.messages)}')
+            self._warn_throttled('pipeline', f'{self._cloud_topic}: no cylinders: '
+                                             f'{"; ".join(det.messages)}')
         self._publish(msg.header, det.cylinders, det.probabilities)
+        self.input_health.accept(self._cloud_topic)
         self._report(det, ms, xyz.shape)
         return det
 

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from cylinder_detector_node import node
 from vizzy_runtime.convert import array_to_pointcloud2
@@ -28,6 +29,17 @@ def test_clouds_are_checked() -> None:
     short = array_to_pointcloud2(good)
     short.width = 1000  # more points than the data holds
     assert 'bytes' in node.cloud_problem(short, 50)
+    # each refusal carries a short stable reason (an InputHealth counter key)
+    empty = array_to_pointcloud2(np.zeros(0, dtype=xyz))
+    odd = array_to_pointcloud2(good)
+    odd.fields[2].datatype = 99
+    for msg, reason in ((array_to_pointcloud2(nan), node.TOO_FEW_POINTS),
+                        (array_to_pointcloud2(flat), node.NO_XYZ), (short, node.SHORT_DATA),
+                        (empty, node.EMPTY_CLOUD), (odd, node.BAD_FIELDS)):
+        with pytest.raises(node.CloudRefused) as refused:
+            node.cloud_xyz(msg, 50)
+        assert refused.value.reason == reason, str(refused.value)
+    assert all(not any(c.isdigit() for c in r) for r in node.CLOUD_REASONS + node.IMAGE_REASONS)
 
 
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
@@ -76,9 +88,20 @@ def test_images_are_read_as_rgb() -> None:
     assert (node.rgb_image(numpy_to_image(rgb, 'rgb8')) == rgb).all()
     bgr = numpy_to_image(np.ascontiguousarray(rgb[..., ::-1]), 'bgr8')
     assert (node.rgb_image(bgr) == rgb).all()
-    import pytest
     with pytest.raises(ValueError, match='not a colour one'):
         node.rgb_image(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'))
+    # the checks on arrival: (reason, detail) or None
+    assert node.image_refusal(numpy_to_image(rgb, 'rgb8')) is None
+    assert node.image_refusal(numpy_to_image(np.zeros((4, 5, 4), np.uint8), 'bgra8')) is None
+    reason, detail = node.image_refusal(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'))
+    assert reason == node.UNSUPPORTED_ENCODING and "'mono8'" in detail
+    tall = numpy_to_image(rgb, 'rgb8')
+    tall.height = 8                                      # more rows than the data holds
+    assert node.image_refusal(tall)[0] == node.SHORT_DATA
+    tall.height, tall.step = 4, 10                       # a row is 15 bytes
+    assert node.image_refusal(tall)[0] == node.SHORT_STEP
+    tall.width = 0
+    assert node.image_refusal(tall)[0] == node.EMPTY_IMAGE
     stamp = node.CylinderArray().header.stamp
     stamp.sec, stamp.nanosec = 3, 500_000_000
     assert node.stamp_s(stamp) == 3.5

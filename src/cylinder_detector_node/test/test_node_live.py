@@ -16,6 +16,7 @@ import pytest
 from cylinder_detector_node import node as cyl_node
 from cylinder_detector_node.core.scene import make_tabletop
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
+from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_system_default
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 
@@ -26,6 +27,7 @@ MarkerArray = message('visualization_msgs/msg/MarkerArray')
 Marker = message('visualization_msgs/msg/Marker')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 Image = message('sensor_msgs/msg/Image')
+DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 
 TIMEOUT = 60.0
 FRAME = 'rgbd_camera_optical_frame'
@@ -222,3 +224,114 @@ def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered,
     assert wait_until(lambda: 'image 320x240 does not match the 640x480 cloud' in capfd.readouterr().err,
                       TIMEOUT, spin=executor)
     assert any(a.header.stamp.sec == 52 and a.cylinders for a in camera.arrays)
+
+
+def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypatch) -> None:
+    """Bad clouds (refused on the worker thread) and bad images (on arrival) are counted per
+    (topic, reason) in input_health, logged and reported on /diagnostics; each refused cloud is
+    answered with an empty array; the valid cloud right after is processed; nothing raises, and
+    an exception in a callback or the worker is counted too."""
+    camera, detector, executor = graph
+    health = detector.input_health
+    cloud_topic, image_topic = detector._cloud_sub.topic_name, detector._image_sub.topic_name
+    reports: list[Any] = []
+    camera.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, reports.append, 10)
+    expected: dict[tuple[str, str], int] = {}
+
+    def send_cloud(msg: Any, reason: str) -> None:
+        """Publish msg until the detector received it once (sensor-data QoS may lose it), then
+        wait for its refusal."""
+        received = detector.clouds_received
+        assert publish_until(lambda: camera.cloud_pub.publish(msg),
+                             lambda: detector.clouds_received > received, executor, TIMEOUT,
+                             period=5.0)
+        expected[(cloud_topic, reason)] = 1
+        assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
+            health.refused()
+        stamp = msg.header.stamp.sec           # answered with an empty array
+        assert wait_until(lambda: any(a.header.stamp.sec == stamp and not a.cylinders
+                                      for a in camera.arrays), TIMEOUT, spin=executor)
+
+    def send_image(msg: Any, reason: str) -> None:
+        """Images are checked in the callback: refused once it arrived (sent again if lost)."""
+        expected[(image_topic, reason)] = 1
+        assert publish_until(lambda: camera.image_pub.publish(msg),
+                             lambda: health.refused() == expected, executor, TIMEOUT,
+                             period=5.0), health.refused()
+
+    x, y = np.meshgrid(np.linspace(-0.3, 0.3, 64), np.linspace(-0.2, 0.2, 48))
+    plane = np.stack([x, y, np.ones_like(x)], axis=-1)     # a flat 64x48 cloud 1 m away
+    no_fields = _cloud_message(plane, 60)
+    no_fields.fields = []
+    send_cloud(no_fields, cyl_node.NO_XYZ)
+    truncated = _cloud_message(plane, 61)
+    truncated.height = 2 * truncated.height                 # more points than the data holds
+    send_cloud(truncated, cyl_node.SHORT_DATA)
+    send_cloud(_cloud_message(np.full((48, 64, 3), np.nan), 62), cyl_node.TOO_FEW_POINTS)
+    empty = array_to_pointcloud2(np.zeros(0, dtype=XYZ))
+    empty.header.stamp.sec = 63
+    send_cloud(empty, cyl_node.EMPTY_CLOUD)
+    send_image(_mono_image(48, 64, 64), cyl_node.UNSUPPORTED_ENCODING)
+    tall = _image_msg(np.zeros((48, 64, 3), np.uint8), 64)
+    tall.height = 96                                        # more rows than the data holds
+    send_image(tall, cyl_node.SHORT_DATA)
+    assert health.accepted() == {}
+
+    # a valid cloud right after: processed (an array with its stamp, the accept count)
+    assert _send_until(camera, executor, _cloud_message(plane, 65),
+                       lambda: health.accepted().get(cloud_topic) == 1
+                       and any(a.header.stamp.sec == 65 for a in camera.arrays))
+    assert health.refused() == expected and detector.frames_dropped == 0
+    # and a valid image is accepted
+    grey = np.full((48, 64, 3), 90, np.uint8)
+    assert publish_until(lambda: camera.image_pub.publish(_image_msg(grey, 65)),
+                         lambda: health.accepted().get(image_topic) == 1, executor, TIMEOUT,
+                         period=5.0)
+
+    # /diagnostics: the node's status carries the counts
+    name = detector.get_fully_qualified_name()
+
+    def reported() -> dict[str, str]:
+        for array in reversed(reports):
+            for status in array.status:
+                if status.name == name:
+                    return {kv.key: kv.value for kv in status.values}
+        return {}
+
+    want = {**{f'{topic}: {reason}': '1' for topic, reason in expected},
+            f'{cloud_topic}: accepted': '1', f'{image_topic}: accepted': '1'}
+    assert wait_until(lambda: reported() == want, TIMEOUT, spin=executor), reported()
+    # each first refusal logged once, naming topic and reason; nothing raised
+    err = capfd.readouterr().err
+    for topic, reason in expected:
+        assert err.count(f'{topic}: refused: {reason}') == 1, err
+    assert f'{cloud_topic}: refused: {cyl_node.NO_XYZ}: no cylinders: no field(s) x, y, z' in err
+    assert 'Traceback' not in err
+    assert not any(reason.startswith('failed on') for _, reason in health.refused())
+
+    # an exception in the image callback or in the worker (both guarded): counted on its topic
+    def boom(*_: Any, **__: Any) -> None:
+        raise RuntimeError('on fire')
+
+    monkeypatch.setattr(cyl_node, 'image_refusal', boom)
+    send_image(_image_msg(grey, 66), 'failed on an image: RuntimeError')
+    monkeypatch.setattr(cyl_node, 'detect_cylinders', boom)
+    received = detector.clouds_received
+    assert publish_until(lambda: camera.cloud_pub.publish(_cloud_message(plane, 66)),
+                         lambda: detector.clouds_received > received, executor, TIMEOUT,
+                         period=5.0)
+    expected[(cloud_topic, 'failed on a cloud: RuntimeError')] = 1
+    assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
+        health.refused()
+    monkeypatch.undo()                       # and the node goes on
+    assert _send_until(camera, executor, _cloud_message(plane, 67),
+                       lambda: health.accepted().get(cloud_topic) == 2
+                       and any(a.header.stamp.sec == 67 for a in camera.arrays))
+    assert 'refused: failed on a cloud: RuntimeError: on fire' in capfd.readouterr().err
+
+
+def _mono_image(height: int, width: int, stamp_sec: int) -> Any:
+    msg = numpy_to_image(np.zeros((height, width), np.uint8), 'mono8')
+    msg.header.frame_id = FRAME
+    msg.header.stamp.sec = stamp_sec
+    return msg

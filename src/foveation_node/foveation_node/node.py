@@ -20,8 +20,25 @@ projects onto the principal point; for the simulator's ideal cameras this is the
 i.e. the default is already right for a head that fixates.
 
 While /gaze/state says in_saccade, frames are dropped (saccadic suppression) if
-suppress_during_saccades. Bad input (an unsupported encoding, zero size, a fixation outside the
-image, too many levels for the image) is logged (throttled) and the frame skipped.
+suppress_during_saccades (counted in frames_suppressed, not as refusals).
+
+Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
+(self.input_health): the first refusal of each (topic, reason) is logged in one line naming
+node, topic and reason, later ones at most every 5 s with the count so far, and the node
+publishes its status about once a second on
+
+  /diagnostics                 diagnostic_msgs/DiagnosticArray: WARN while inputs are being
+                               refused, with `<topic>: <reason>` = count and
+                               `<topic>: accepted` = count entries
+
+The reasons (IMAGE_REASONS, FIXATION_OUTSIDE, TOO_SMALL_FOR_LEVELS, UNUSABLE_K): on
+/vizzy/left/image_raw 'unsupported encoding' (not rgb8/bgr8), 'empty image' (zero width or
+height), 'too large' (beyond max_width x max_height), 'step shorter than a row', 'size
+inconsistent with data' (fewer data bytes than height x step), 'fixation outside image',
+'too small for levels' (min(width, height) < 2^levels); on /vizzy/left/camera_info 'unusable
+K' (not 9 finite values with fx, fy > 0; the last good one stays in use); and, for an
+exception escaping a callback (node_tools.guarded), 'failed on an image: <ExcType>' (or a
+camera_info, a state). The refused frame is skipped and the node keeps running.
 
 Recognition (section 2.3.2, Fig. 2.5; core.recognition): at most recognition_rate_hz, the
 newest frame goes to a worker thread (at most one recognition in flight; a frame arriving while
@@ -61,6 +78,7 @@ from foveation_node.core.recognition import (
     DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
     back_project, saccade_target, two_pass)
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
+from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread)
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
@@ -87,6 +105,18 @@ GAZE_PRIORITY = 30          # saccades: above stereo_ses (20) and mot_planner (1
 DEFAULT_MODEL = 'package://foveation_node/models/foveation_cnn.pt'
 DEFAULT_LABELS = 'package://foveation_node/models/foveation_cnn.labels'
 ENCODINGS = ('rgb8', 'bgr8')
+# Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
+UNSUPPORTED_ENCODING = 'unsupported encoding'
+EMPTY_IMAGE = 'empty image'
+TOO_LARGE = 'too large'
+SHORT_STEP = 'step shorter than a row'
+SHORT_DATA = 'size inconsistent with data'
+UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
+IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, TOO_LARGE, SHORT_STEP, SHORT_DATA,
+                 UNCONVERTIBLE)
+FIXATION_OUTSIDE = 'fixation outside image'
+TOO_SMALL_FOR_LEVELS = 'too small for levels'
+UNUSABLE_K = 'unusable K'
 BANDWIDTH_LOG_PERIOD_S = 10.0
 WARN_PERIOD_S = 5.0
 MAX_LEVELS = 10
@@ -174,18 +204,39 @@ def check_parameter(name: str, value: Any) -> str | None:
     return None
 
 
-def image_problem(msg: Any, max_width: int, max_height: int) -> str | None:
-    """Why an input image cannot be used, or None if it can."""
+def image_problem(msg: Any, max_width: int, max_height: int) -> tuple[str, str] | None:
+    """(reason, detail) of why an input image cannot be used, or None if it can: reason is one
+    of IMAGE_REASONS (a counter key), detail names the values."""
     if msg.encoding not in ENCODINGS:
-        return f'encoding {msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
+        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
     if msg.width == 0 or msg.height == 0:
-        return f'empty image ({msg.width}x{msg.height})'
+        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
     if msg.width > max_width or msg.height > max_height:
-        return f'{msg.width}x{msg.height} exceeds max_width x max_height {max_width}x{max_height}'
+        return TOO_LARGE, (f'{msg.width}x{msg.height} exceeds max_width x max_height '
+                           f'{max_width}x{max_height}')
+    row = 3 * msg.width                               # rgb8 and bgr8: 3 bytes a pixel
+    if msg.step < row:
+        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
+    size = len(msg.data)
+    if size < msg.step * msg.height:
+        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
+                            f'{msg.step * msg.height} expected')
     try:
         image_to_numpy(msg)
     except ConversionError as exc:
-        return str(exc)
+        return UNCONVERTIBLE, str(exc)
+    return None
+
+
+def _k_text(k: Any) -> str:
+    return 'K [' + ', '.join(f'{float(v):g}' for v in k) + ']'
+
+
+def camera_k(msg: Any) -> tuple[float, ...] | None:
+    """The 9 values of a CameraInfo's K if usable (finite, fx and fy > 0), else None."""
+    k = tuple(float(v) for v in msg.k)
+    if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
+        return k
     return None
 
 
@@ -218,7 +269,9 @@ class FoveationNode(Node):
         self._foveator: Foveator | None = None
         self._in_saccade = False
         self._principal_point: tuple[float, float] | None = None
-        self._warned: dict[str, float] = {}
+        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        # refused inputs, per topic and reason; /diagnostics (before any subscription)
+        self.input_health = InputHealth(self)
         self.frames_published = 0
         self.frames_suppressed = 0
         self._last_bandwidth_log = -math.inf
@@ -230,17 +283,20 @@ class FoveationNode(Node):
         # resolved names, for log lines
         self._image_topic = self.resolve_topic_name(INPUT_TOPIC)
         self._info_topic = self.resolve_topic_name(CAMERA_INFO_TOPIC)
-        gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        # an exception in a callback is counted as a refusal of its topic (and logged there)
         self._image_sub = self.create_subscription(
             Image, INPUT_TOPIC,
-            guarded(self, f'{self._image_topic}: failed on an image', self._on_image),
+            guarded(self, 'failed on an image', self._on_image, topic=self._image_topic),
             qos_profile_sensor_data)
         self._gaze_state_sub = self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
-            guarded(self, f'{gaze_state_topic}: failed on a state', self._on_gaze_state), 10)
+            guarded(self, 'failed on a state', self._on_gaze_state,
+                    topic=self._gaze_state_topic), 10)
         self._info_sub = self.create_subscription(
             CameraInfo, CAMERA_INFO_TOPIC,
-            guarded(self, f'{self._info_topic}: failed on a camera_info', self._on_camera_info),
+            guarded(self, 'failed on a camera_info', self._on_camera_info,
+                    topic=self._info_topic),
             qos_profile_sensor_data)
         p = self._p
         self.get_logger().info(
@@ -310,16 +366,21 @@ class FoveationNode(Node):
         if in_saccade and not self._in_saccade:
             self._saccade_epoch += 1            # frames from before it are stale for saccades
         self._in_saccade = in_saccade
+        self.input_health.accept(self._gaze_state_topic)
 
     def _on_camera_info(self, msg: Any) -> None:
-        k = list(msg.k)
-        if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
-            self._principal_point = (float(k[2]), float(k[5]))
-            self._camera_k = tuple(float(v) for v in k)
-            self._camera_size = (int(msg.width), int(msg.height))
+        k = camera_k(msg)
+        if k is None:       # the last usable one (if any) stays in use
+            self.input_health.refuse(self._info_topic, UNUSABLE_K, _k_text(msg.k))
+            return
+        self._principal_point = (k[2], k[5])
+        self._camera_k = k
+        self._camera_size = (int(msg.width), int(msg.height))
+        self.input_health.accept(self._info_topic)
 
-    def _warn(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind of problem."""
+    def _warn_throttled(self, kind: str, text: str) -> None:
+        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
+        input (those go to self.input_health)."""
         now = time.monotonic()
         if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
             self._warned[kind] = now
@@ -343,15 +404,19 @@ class FoveationNode(Node):
             return
         problem = image_problem(msg, self._p['max_width'], self._p['max_height'])
         if problem:
-            self._warn('image', f'{self._image_topic}: dropped image: {problem}')
+            self.input_health.refuse(self._image_topic, *problem)
             return
         image = image_to_numpy(msg)
         height, width = image.shape[:2]
         try:
             fixation = self._fixation(width, height)
-            foveator = self._get_foveator(width, height)
         except ValueError as exc:
-            self._warn('setup', f'{self._image_topic}: dropped image: {exc}')
+            self.input_health.refuse(self._image_topic, FIXATION_OUTSIDE, str(exc))
+            return
+        try:
+            foveator = self._get_foveator(width, height)
+        except ValueError as exc:   # the parameters are checked: only min(W, H) < 2^levels
+            self.input_health.refuse(self._image_topic, TOO_SMALL_FOR_LEVELS, str(exc))
             return
         out = foveator.foveate(image, fixation)
         self._pub.publish(numpy_to_image(out, msg.encoding, header=msg.header))
@@ -364,6 +429,7 @@ class FoveationNode(Node):
                            else np.frombuffer(jpeg, np.uint8))
         self._jpeg_pub.publish(compressed)
         self.frames_published += 1
+        self.input_health.accept(self._image_topic)
         self._report_bandwidth(image, msg.encoding, len(jpeg), quality, fixation)
         self._offer_recognition(image, msg, fixation)
 
@@ -402,7 +468,7 @@ class FoveationNode(Node):
         try:
             foveator = self._recognition_foveator(width, height)
         except ValueError as exc:
-            self._warn('recognition', f'recognition skipped: {exc}')
+            self._warn_throttled('recognition', f'recognition skipped: {exc}')
             return None
         result = two_pass(classifier, rgb, fixation, foveator.foveate, self._p['top_k'],
                           self._p['saliency_threshold'])
@@ -442,11 +508,12 @@ class FoveationNode(Node):
             return
         k = self._camera_k
         if k is None or self._camera_size != (width, height):
-            self._warn('camera_info', f'no saccade: no {self._info_topic} for {width}x{height} '
-                       f'images yet (have {self._camera_size})')
+            self._warn_throttled('camera_info', f'no saccade: no {self._info_topic} for '
+                                 f'{width}x{height} images yet (have {self._camera_size})')
             return
         if not frame_id:
-            self._warn('frame', f'no saccade: the image from {self._image_topic} has no frame_id')
+            self._warn_throttled(
+                'frame', f'no saccade: the image from {self._image_topic} has no frame_id')
             return
         target = saccade_target(detections, (k[2], k[5]), p['saccade_min_score'],
                                 p['saccade_min_offset_px'])

@@ -19,19 +19,28 @@ def test_parameter_table_and_config() -> None:
 
 
 def test_images_are_checked() -> None:
+    """Each problem has its reason (a stable counter key) and a detail with the values."""
     msg = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
     assert node.image_problem(msg, 4096, 4096) is None
     msg.encoding = 'bgr8'
     assert node.image_problem(msg, 4096, 4096) is None
     mono = numpy_to_image(np.zeros((48, 64), np.uint8), 'mono8')
-    assert 'encoding' in node.image_problem(mono, 4096, 4096)
+    assert node.image_problem(mono, 4096, 4096) == (
+        'unsupported encoding', "'mono8' is not one of rgb8, bgr8")
     msg.height = 100  # more rows than the data holds
-    assert 'bytes' in node.image_problem(msg, 4096, 4096)
+    reason, detail = node.image_problem(msg, 4096, 4096)
+    assert reason == 'size inconsistent with data' and '9216 data bytes' in detail
     empty = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
     empty.width = 0
-    assert 'empty' in node.image_problem(empty, 4096, 4096)
+    assert node.image_problem(empty, 4096, 4096) == ('empty image', '0x48')
     big = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
-    assert 'max_width' in node.image_problem(big, 32, 4096)
+    reason, detail = node.image_problem(big, 32, 4096)
+    assert reason == 'too large' and 'max_width' in detail
+    narrow = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
+    narrow.step = 100
+    assert node.image_problem(narrow, 4096, 4096)[0] == 'step shorter than a row'
+    for bad in (mono, msg, empty, big, narrow):
+        assert node.image_problem(bad, 32, 4096)[0] in node.IMAGE_REASONS
 
 
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:

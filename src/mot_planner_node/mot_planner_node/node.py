@@ -23,6 +23,7 @@ are born), associate and update. It publishes
                   ray through their mean centre (needs camera_info), in world_frame through
                   the camera's pose at the image's stamp, or in the image's frame_id when that
                   pose is unknown
+  /diagnostics    diagnostic_msgs/DiagnosticArray, about 1 Hz: the node's input health (below)
 
 Ego-motion: with ego_motion on, the node keeps the image frame's orientation in world_frame
 (base_link: the waist, which never moves) from /tf and /tf_static, interpolated at each
@@ -45,9 +46,21 @@ instead of 'person', and drawn grey in the overlay. Without camera_info or the c
 the check is skipped (logged once).
 
 Track velocities are converted from px/frame to px/s with the frame period measured from the
-image stamps (NOMINAL_FPS until two stamped frames arrived). Bad input (an unsupported encoding,
-an empty or truncated image) is logged (throttled) and dropped; a frame size change resets the
-tracker with a warning and bootstraps on the new size. Changing k_max, s_max, alpha_c, alpha_s or
+image stamps (NOMINAL_FPS until two stamped frames arrived). A frame size change resets the
+tracker with a warning and bootstraps on the new size.
+
+Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
+(self.input_health): the first refusal of each (topic, reason) is logged in one line naming
+node, topic and reason, later ones at most every 5 s with the count so far, and /diagnostics
+carries the node's status (WARN while inputs are being refused) with `<topic>: <reason>` =
+count and `<topic>: accepted` = count entries. The reasons (IMAGE_REASONS, UNUSABLE_FRAME,
+UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encoding' (not rgb8/bgr8), 'empty image'
+(zero width or height), 'step shorter than a row', 'size inconsistent with data' (fewer data
+bytes than height x step), 'unusable frame' (the tracker's FrameError); on
+/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy > 0; the last good one
+stays in use); and, for an exception escaping a callback (node_tools.guarded), 'failed on an
+image: <ExcType>' (or a camera_info, a state). A refused image is dropped (frames_dropped),
+the tracks untouched. Changing k_max, s_max, alpha_c, alpha_s or
 budget_ms keeps the tracks; changing a detector setting restarts the tracker.
 
 The detector comes from the module-level DETECTOR_FACTORY(params) (HOG from the detector
@@ -73,6 +86,7 @@ from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.regions import constraint_areas
 from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
 from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
+from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
@@ -97,6 +111,15 @@ OVERLAY_TOPIC = 'mot/overlay'
 GAZE_COMMAND_TOPIC = 'gaze/command'
 SOURCE = 'mot_planner'
 ENCODINGS = ('rgb8', 'bgr8')
+# Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
+UNSUPPORTED_ENCODING = 'unsupported encoding'
+EMPTY_IMAGE = 'empty image'
+SHORT_STEP = 'step shorter than a row'
+SHORT_DATA = 'size inconsistent with data'
+UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
+IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
+UNUSABLE_FRAME = 'unusable frame'
+UNUSABLE_K = 'unusable K'
 NOMINAL_FPS = 30.0
 # The floor in base_link: -vizzy_sim_bridge.core.kinematics.WAIST_HEIGHT (the waist joint's height
 # in vizzy_description), copied so that the node does not depend on the simulator's package.
@@ -174,14 +197,36 @@ def check_parameter(name: str, value: Any) -> str | None:
     return None
 
 
-def image_problem(msg: Any) -> str | None:
-    """Why an input image cannot be used, or None if it can."""
+def image_problem(msg: Any) -> tuple[str, str] | None:
+    """(reason, detail) of why an input image cannot be used, or None if it can: reason is one
+    of IMAGE_REASONS (a counter key), detail names the values."""
     if msg.encoding not in ENCODINGS:
-        return f'encoding {msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
+        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
+    if msg.width == 0 or msg.height == 0:
+        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
+    row = 3 * msg.width                               # rgb8 and bgr8: 3 bytes a pixel
+    if msg.step < row:
+        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
+    size = len(msg.data)
+    if size < msg.step * msg.height:
+        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
+                            f'{msg.step * msg.height} expected')
     try:
         image_to_numpy(msg)
     except ConversionError as exc:
-        return str(exc)
+        return UNCONVERTIBLE, str(exc)
+    return None
+
+
+def _k_text(k: Any) -> str:
+    return 'K [' + ', '.join(f'{float(v):g}' for v in k) + ']'
+
+
+def camera_k(msg: Any) -> list[float] | None:
+    """The 9 values of a CameraInfo's K if usable (finite, fx and fy > 0), else None."""
+    k = [float(v) for v in msg.k]
+    if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
+        return k
     return None
 
 
@@ -217,7 +262,9 @@ class MotPlannerNode(Node):
         self._p = declare_parameters(self, PARAMETERS, check_parameter,
                                      on_change=self._on_parameters_changed)
         self._tracker = self._new_tracker()
-        self._warned: dict[str, float] = {}
+        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        # refused inputs, per topic and reason; /diagnostics (before any subscription)
+        self.input_health = InputHealth(self)
         self._in_saccade = False
         self._k: list[float] | None = None
         self._last_stamp: float | None = None
@@ -247,18 +294,21 @@ class MotPlannerNode(Node):
         # resolved names, for log lines
         self._image_topic = self.resolve_topic_name(IMAGE_TOPIC)
         self._info_topic = self.resolve_topic_name(CAMERA_INFO_TOPIC)
-        gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        # an exception in a callback is counted as a refusal of its topic (and logged there)
         self._image_sub = self.create_subscription(
             Image, IMAGE_TOPIC,
-            guarded(self, f'{self._image_topic}: failed on an image', self._on_image),
+            guarded(self, 'failed on an image', self._on_image, topic=self._image_topic),
             qos_profile_sensor_data)
         self._info_sub = self.create_subscription(
             CameraInfo, CAMERA_INFO_TOPIC,
-            guarded(self, f'{self._info_topic}: failed on a camera_info', self._on_camera_info),
+            guarded(self, 'failed on a camera_info', self._on_camera_info,
+                    topic=self._info_topic),
             qos_profile_sensor_data)
         self._gaze_state_sub = self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
-            guarded(self, f'{gaze_state_topic}: failed on a state', self._on_gaze_state), 10)
+            guarded(self, 'failed on a state', self._on_gaze_state,
+                    topic=self._gaze_state_topic), 10)
         # each /tf message also records the camera's pose at its stamp (ego-motion)
         self._tf_listener = TransformListener(self._tf, self, on_update=self._on_tf)
         p = self._p
@@ -299,11 +349,15 @@ class MotPlannerNode(Node):
 
     def _on_gaze_state(self, msg: Any) -> None:
         self._in_saccade = bool(msg.in_saccade)
+        self.input_health.accept(self._gaze_state_topic)
 
     def _on_camera_info(self, msg: Any) -> None:
-        k = [float(v) for v in msg.k]
-        if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
-            self._k = k
+        k = camera_k(msg)
+        if k is None:       # the last usable one (if any) stays in use
+            self.input_health.refuse(self._info_topic, UNUSABLE_K, _k_text(msg.k))
+            return
+        self._k = k
+        self.input_health.accept(self._info_topic)
 
     def _on_tf(self, msg: Any) -> None:
         if not msg.transforms or not self._p['ego_motion']:
@@ -360,8 +414,9 @@ class MotPlannerNode(Node):
             np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0))))
         return rotation_homography(np.reshape(self._k, (3, 3)), rel), pose
 
-    def _warn(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind of problem."""
+    def _warn_throttled(self, kind: str, text: str) -> None:
+        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
+        input (those go to self.input_health)."""
         now = time.monotonic()
         if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
             self._warned[kind] = now
@@ -379,16 +434,17 @@ class MotPlannerNode(Node):
         problem = image_problem(msg)
         if problem:
             self.frames_dropped += 1
-            self._warn('image', f'{self._image_topic}: dropped image: {problem}')
+            self.input_health.refuse(self._image_topic, *problem)
             return
         image = image_to_numpy(msg)
         bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else image
         tracker = self._tracker
         size = (int(image.shape[1]), int(image.shape[0]))
         if tracker.image_size is not None and size != tracker.image_size:
-            self._warn('size', f'{self._image_topic}: frame size changed from {tracker.image_size[0]}x'
-                               f'{tracker.image_size[1]} to {size[0]}x{size[1]}: tracker reset, '
-                               f'{len(tracker.tracks)} tracks dropped')
+            self._warn_throttled(
+                'size', f'{self._image_topic}: frame size changed from {tracker.image_size[0]}x'
+                        f'{tracker.image_size[1]} to {size[0]}x{size[1]}: tracker reset, '
+                        f'{len(tracker.tracks)} tracks dropped')
             tracker.reset()
             self._forget_tracks()
             self.resets += 1
@@ -398,7 +454,7 @@ class MotPlannerNode(Node):
             result = tracker.step(bgr, homography=homography)
         except FrameError as exc:
             self.frames_dropped += 1
-            self._warn('frame', f'{self._image_topic}: dropped image: {exc}')
+            self.input_health.refuse(self._image_topic, UNUSABLE_FRAME, str(exc))
             return
         self._last_pose = pose
         self.frames_compensated += homography is not None
@@ -413,6 +469,7 @@ class MotPlannerNode(Node):
                 self._overlay(image, msg.encoding, result, persons), 'rgb8', header=msg.header))
         if self._p['publish_gaze']:
             self._send_gaze(msg.header, result, pose, persons)
+        self.input_health.accept(self._image_topic)
 
     def _constraint_areas(self, size: tuple[int, int],
                           homography: np.ndarray | None) -> dict[int, float]:
@@ -558,10 +615,11 @@ class MotPlannerNode(Node):
         if now - self._last_gaze < 1.0 / self._p['gaze_rate_hz']:
             return
         if self._k is None:
-            self._warn('gaze', f'no {self._info_topic} yet: no gaze commands')
+            self._warn_throttled('gaze', f'no {self._info_topic} yet: no gaze commands')
             return
         if not header.frame_id:
-            self._warn('gaze', f'{self._image_topic}: images have no frame_id: no gaze commands')
+            self._warn_throttled(
+                'gaze', f'{self._image_topic}: images have no frame_id: no gaze commands')
             return
         boxes = result.boxes[steer]
         centres = boxes[:, :2] + boxes[:, 2:] / 2.0

@@ -33,9 +33,16 @@ def test_images_are_checked() -> None:
     msg.encoding = 'bgr8'
     assert node.image_problem(msg) is None
     mono = numpy_to_image(np.zeros((48, 64), np.uint8), 'mono8')
-    assert 'encoding' in node.image_problem(mono)
+    assert node.image_problem(mono) == ('unsupported encoding', "'mono8' is not one of rgb8, bgr8")
     msg.height = 100  # more rows than the data holds
-    assert 'bytes' in node.image_problem(msg)
+    reason, detail = node.image_problem(msg)
+    assert reason == 'size inconsistent with data' and '9216 data bytes' in detail
+    empty = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
+    empty.height = 0
+    assert node.image_problem(empty) == ('empty image', '64x0')
+    narrow = numpy_to_image(np.zeros((48, 64, 3), np.uint8), 'rgb8')
+    narrow.step = 100
+    assert node.image_problem(narrow)[0] == 'step shorter than a row'
 
 
 def test_node_declares_its_parameters_and_refuses_bad_values() -> None:

@@ -29,14 +29,37 @@ SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
                   hold_time: the chosen cell (core.decision.choose_fixation, UCB / PI / EI) once
                   decision_period_s has passed since the last command AND frames_per_fixation
                   frames were fused since the last saccade settled
+  /diagnostics    diagnostic_msgs/DiagnosticArray, about 1 Hz: the node's input health (below)
 
 Processing never blocks the executor: callbacks only store messages; a worker thread takes the
 newest complete pair (older pairs are dropped: newest wins, one in flight) at most max_rate_hz
 times a second, so the node leaves CPU to the rest of the graph (2 Hz log-polar ~ 0.3-0.4 of a
-core on the development machine). Bad input (unsupported encodings, left/right sizes or stamps
-that do not match, no camera_info or no tf yet, camera_info that disagrees with the image,
-degenerate geometry, NaN disparities) is skipped with a throttled message; the ego-sphere stays
-consistent (SensoryEgoSphere.fuse validates everything before it changes state).
+core on the development machine). Bad input is refused and the ego-sphere stays consistent
+(SensoryEgoSphere.fuse validates everything before it changes state; degenerate geometry and NaN
+disparities inside a frame are dropped point by point, StereoFrame.rejected).
+
+Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
+(self.input_health): the first refusal of each (topic, reason) is logged in one line naming node,
+topic and reason, later ones at most every 5 s with the count so far, and /diagnostics carries the
+node's status (WARN while inputs are being refused) with `<topic>: <reason>` = count and
+`<topic>: accepted` = count entries. The reasons (short, stable counter keys; the values are in
+the logged detail):
+  on /vizzy/{left,right}/image_raw, one image at a time (IMAGE_REASONS): 'unsupported encoding'
+    (not rgb8/bgr8), 'empty image', 'step shorter than a row', 'size inconsistent with data'
+    (fewer data bytes than height x step); 'no partner image' (no image of the other eye came
+    within max_stamp_skew_s of its stamp: dropped unpaired, images_unpaired);
+  on both image topics, once per image of a pair the worker took (PAIR_REASONS): 'left and right
+    sizes differ', 'no camera_info' (none usable yet for an eye), 'size differs from
+    camera_info', 'no frame_id', 'no camera pose' (tf lacks ego <- left or left <- right, or the
+    rig is degenerate), 'no valid correspondences' (e.g. textureless: NaN disparities),
+    'failed on a pair: <ExcType>' (an exception in the worker); these count in frames_skipped;
+  on /vizzy/{left,right}/camera_info: 'unusable K' (not 9 finite values with fx, fy > 0; the last
+    good K stays in use);
+  for an exception escaping a subscription callback (node_tools.guarded): 'failed on an image:
+    <ExcType>' (or a camera_info, a state) on that callback's topic.
+A pair's images are accepted when it was fused, or deliberately not fused during a saccade
+(frames_in_saccade); a pair replaced by a newer one before the worker took it (pairs_dropped,
+the rate limit) is neither accepted nor refused. Gaze states are always accepted.
 
 QoS: unlike REP 2003's sensor-data default, the four stereo inputs subscribe RELIABLE keep-last 5:
 best effort lost most pairs of fragmented VGA images (35 of 150 pairs vs 149 reliable, measured).
@@ -59,6 +82,7 @@ from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
 from stereo_ses_node.core.stereo import StereoFrame, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
 from vizzy_runtime.convert import ConversionError, array_to_pointcloud2, image_to_numpy
+from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread, replace_timer)
 from vizzy_runtime.ros import ExternalShutdownException, Node, QoSProfile, message
@@ -85,7 +109,26 @@ CELLS_TOPIC = 'ses/cells'
 STEREO_QOS = QoSProfile(depth=5)
 SOURCE = 'stereo_ses'
 ENCODINGS = ('rgb8', 'bgr8')
-WARN_PERIOD_S = 5.0
+# Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
+UNSUPPORTED_ENCODING = 'unsupported encoding'
+EMPTY_IMAGE = 'empty image'
+SHORT_STEP = 'step shorter than a row'
+SHORT_DATA = 'size inconsistent with data'
+UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
+IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
+NO_PARTNER = 'no partner image'
+# a pair the worker could not fuse: counted on both image topics
+SIZES_DIFFER = 'left and right sizes differ'
+NO_CAMERA_INFO = 'no camera_info'
+INFO_SIZE_MISMATCH = 'size differs from camera_info'
+NO_FRAME_ID = 'no frame_id'
+NO_CAMERA_POSE = 'no camera pose'
+NO_CORRESPONDENCES = 'no valid correspondences'
+PAIR_FAILED = 'failed on a pair'           # + ': <ExcType>'
+PAIR_REASONS = (SIZES_DIFFER, NO_CAMERA_INFO, INFO_SIZE_MISMATCH, NO_FRAME_ID, NO_CAMERA_POSE,
+                NO_CORRESPONDENCES)
+UNUSABLE_K = 'unusable K'
+WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
 # After a gaze command, frames do not count towards frames_per_fixation until the saccade has
 # started (in_saccade seen) or this long has passed (a tiny or refused movement).
 SACCADE_START_TIMEOUT_S = 1.0
@@ -209,14 +252,24 @@ def user_gmm(values: dict[str, Any]) -> GMM:
                       np.reshape(values['bias_variances'], (m, 3)))
 
 
-def image_problem(msg: Any) -> str | None:
-    """Why an input image cannot be used, or None if it can."""
+def image_problem(msg: Any) -> tuple[str, str] | None:
+    """(reason, detail) of why an input image cannot be used, or None if it can: reason is one
+    of IMAGE_REASONS (a counter key), detail names the values."""
     if msg.encoding not in ENCODINGS:
-        return f'encoding {msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
+        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
+    if msg.width == 0 or msg.height == 0:
+        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
+    row = 3 * msg.width                               # rgb8 and bgr8: 3 bytes a pixel
+    if msg.step < row:
+        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
+    size = len(msg.data)
+    if size < msg.step * msg.height:
+        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
+                            f'{msg.step * msg.height} expected')
     try:
         image_to_numpy(msg)
     except ConversionError as exc:
-        return str(exc)
+        return UNCONVERTIBLE, str(exc)
     return None
 
 
@@ -282,6 +335,8 @@ class StereoSesNode(Node):
         super().__init__('stereo_ses', **node_kwargs)
         self._p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_all,
                                      on_change=self._on_parameters_changed)
+        # refused inputs, per topic and reason; /diagnostics (before any subscription)
+        self.input_health = InputHealth(self)
         self._lock = threading.Lock()
         self._ses_lock = threading.Lock()
         self._unpaired: dict[str, list[Any]] = {e: [] for e in EYES}   # waiting, oldest first
@@ -298,7 +353,7 @@ class StereoSesNode(Node):
         self._ses_dirty = False
         self._refused: set[int] = set()   # cells not to choose: refused, or fixating gave nothing
         self._fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
-        self._warned: dict[str, float] = {}
+        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
         # counters (read by tests and the periodic log)
         self.pairs_received = 0
         self.images_unpaired = 0          # dropped: no partner with a matching stamp
@@ -323,20 +378,24 @@ class StereoSesNode(Node):
         self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
         self._image_subs: dict[str, Any] = {}
         self._info_subs: dict[str, Any] = {}
+        # an exception in a callback is counted as a refusal of its topic (and logged there)
         for eye in EYES:
             self._image_subs[eye] = self.create_subscription(
                 Image, IMAGE_TOPICS[eye],
-                guarded(self, f'{self._image_topics[eye]}: failed on an image',
-                        lambda msg, eye=eye: self._on_image(eye, msg)),
+                guarded(self, 'failed on an image',
+                        lambda msg, eye=eye: self._on_image(eye, msg),
+                        topic=self._image_topics[eye]),
                 STEREO_QOS)
             self._info_subs[eye] = self.create_subscription(
                 CameraInfo, INFO_TOPICS[eye],
-                guarded(self, f'{self._info_topics[eye]}: failed on a camera_info',
-                        lambda msg, eye=eye: self._on_camera_info(eye, msg)),
+                guarded(self, 'failed on a camera_info',
+                        lambda msg, eye=eye: self._on_camera_info(eye, msg),
+                        topic=self._info_topics[eye]),
                 STEREO_QOS)
         self._gaze_state_sub = self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
-            guarded(self, f'{self._gaze_state_topic}: failed on a state', self._on_gaze_state), 10)
+            guarded(self, 'failed on a state', self._on_gaze_state,
+                    topic=self._gaze_state_topic), 10)
         # guarded: cells racing with Ctrl-C end spin quietly (ExternalShutdownException)
         self._cells_tick = guarded(self, 'ego-sphere cells failed', self._on_cells_timer)
         self._cells_timer = self.create_timer(1.0 / self._p['cells_rate_hz'], self._cells_tick)
@@ -372,8 +431,9 @@ class StereoSesNode(Node):
             self._cells_timer = replace_timer(self, self._cells_timer,
                                               1.0 / changed['cells_rate_hz'], self._cells_tick)
 
-    def _warn(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind of problem."""
+    def _warn_throttled(self, kind: str, text: str) -> None:
+        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
+        input (those go to self.input_health)."""
         now = time.monotonic()
         if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
             self._warned[kind] = now
@@ -383,12 +443,13 @@ class StereoSesNode(Node):
 
     def _on_camera_info(self, eye: str, msg: Any) -> None:
         k = intrinsics(msg)
-        if k is None:
-            self._warn(f'info_{eye}', f'{self._info_topics[eye]}: unusable K {list(msg.k)}: ignored')
+        if k is None:       # the last usable one (if any) stays in use
+            self.input_health.refuse(self._info_topics[eye], UNUSABLE_K, f'K {list(msg.k)}')
             return
         with self._lock:
             self._k[eye] = k
             self._info_size[eye] = (int(msg.width), int(msg.height))
+        self.input_health.accept(self._info_topics[eye])
 
     def _on_gaze_state(self, msg: Any) -> None:
         with self._lock:
@@ -401,6 +462,7 @@ class StereoSesNode(Node):
                 # latest-only tf would give them the new poses
                 self._settled_at = stamp_seconds(msg.header.stamp)
             self._in_saccade = saccade
+        self.input_health.accept(self._gaze_state_topic)
         if msg.status in (GazeState.STATUS_REJECTED_NAN, GazeState.STATUS_REJECTED_UNKNOWN_FRAME,
                           GazeState.STATUS_REJECTED_UNREACHABLE,
                           GazeState.STATUS_REJECTED_INVALID) and self.last_decision is not None \
@@ -408,13 +470,13 @@ class StereoSesNode(Node):
             # the status of the command just sent (the controller answers at once)
             with self._lock:        # not chosen again (until the ego-sphere is rebuilt)
                 self._refused.add(self.last_decision.cell)
-            self._warn('gaze_status', f'{self._gaze_state_topic}: a gaze command was refused: '
-                                      f'{msg.status_message}')
+            self._warn_throttled('gaze_status', f'{self._gaze_state_topic}: a gaze command was '
+                                                f'refused: {msg.status_message}')
 
     def _on_image(self, eye: str, msg: Any) -> None:
         problem = image_problem(msg)
         if problem:
-            self._warn(f'image_{eye}', f'{self._image_topics[eye]}: dropped image: {problem}')
+            self.input_health.refuse(self._image_topics[eye], *problem)
             return
         other_eye = 'right' if eye == 'left' else 'left'
         t = stamp_seconds(msg.header.stamp)
@@ -427,24 +489,28 @@ class StereoSesNode(Node):
                 # wait for the partner (the eyes' images may arrive interleaved); the oldest
                 # waiting image goes when too many wait: its partner was lost
                 mine.append(msg)
-                dropped = max(len(mine) - UNPAIRED_KEPT, 0)
-                del mine[:dropped]
+                unpaired = {eye: mine[:-UNPAIRED_KEPT]}
+                del mine[:-UNPAIRED_KEPT]
             else:
                 # pair; older images of either eye can no longer win (newest pair wins)
                 t_other = stamp_seconds(match.header.stamp)
-                dropped = sum(stamp_seconds(m.header.stamp) < t_other for m in others)
-                dropped += len(mine)
+                unpaired = {eye: list(mine), other_eye: [
+                    m for m in others if stamp_seconds(m.header.stamp) < t_other]}
                 others[:] = [m for m in others if stamp_seconds(m.header.stamp) > t_other]
                 mine.clear()
                 pair = Pair(msg if eye == 'left' else match, match if eye == 'left' else msg, t)
                 if self._worker.put(pair):
                     self.pairs_dropped += 1       # the worker is busy: newest pair wins
                 self.pairs_received += 1
-            self.images_unpaired += dropped
-        if dropped:
-            self._warn('skew', f'dropped {dropped} image(s) without a partner (left/right stamps '
-                               f'differ by more than max_stamp_skew_s {skew:g} s); '
-                               f'{self.images_unpaired} so far')
+            self.images_unpaired += sum(len(gone) for gone in unpaired.values())
+        for gone_eye, gone in unpaired.items():
+            partner = 'right' if gone_eye == 'left' else 'left'
+            for m in gone:
+                self.input_health.refuse(
+                    self._image_topics[gone_eye], NO_PARTNER,
+                    f'image stamped {stamp_seconds(m.header.stamp):.3f} s dropped: no {partner} '
+                    f'image within max_stamp_skew_s {skew:g} s (left/right stamps differ, or its '
+                    f'partner was lost)')
 
     # --- the worker -----------------------------------------------------------------------------
 
@@ -454,20 +520,26 @@ class StereoSesNode(Node):
         except ExternalShutdownException:  # the node is going away: LatestWorker ends quietly
             raise
         except Exception as exc:  # one bad pair never stops the worker
-            self.frames_skipped += 1
-            self._warn('process', f'stereo pair failed: {type(exc).__name__}: {exc}')
+            self._skip(pair, f'{PAIR_FAILED}: {type(exc).__name__}', str(exc))
         self.pairs_processed += 1
 
-    def _skip(self, kind: str, text: str) -> None:
+    def _skip(self, pair: Pair, reason: str, detail: str) -> None:
+        """A pair not fused: both its images are refused (counted and logged per topic)."""
         self.frames_skipped += 1
-        self._warn(kind, f'skipped a stereo pair: {text}')
+        for eye in EYES:
+            self.input_health.refuse(self._image_topics[eye], reason,
+                                     f'pair stamped {pair.stamp:.3f} s skipped: {detail}')
+
+    def _accept(self) -> None:
+        for eye in EYES:
+            self.input_health.accept(self._image_topics[eye])
 
     def _prepare(self, pair: Pair) -> tuple[np.ndarray, np.ndarray, StereoRig, np.ndarray] | None:
         """(left, right, rig in the left optical frame, ego <- left) or None (skipped, logged)."""
         left, right = image_to_numpy(pair.left), image_to_numpy(pair.right)
         if left.shape != right.shape:
-            self._skip('size', f'left image {left.shape[1]}x{left.shape[0]} and right '
-                               f'{right.shape[1]}x{right.shape[0]} differ')
+            self._skip(pair, SIZES_DIFFER, f'left image {left.shape[1]}x{left.shape[0]} and '
+                                           f'right {right.shape[1]}x{right.shape[0]} differ')
             return None
         # the pipeline's colours and grey conversion expect RGB
         left = left[..., ::-1] if pair.left.encoding == 'bgr8' else left
@@ -477,24 +549,26 @@ class StereoSesNode(Node):
             sizes = dict(self._info_size)
         missing = [e for e in EYES if e not in k]
         if missing:
-            self._skip('info', f'waiting for {" and ".join(self._info_topics[e] for e in missing)}')
+            self._skip(pair, NO_CAMERA_INFO,
+                       f'waiting for {" and ".join(self._info_topics[e] for e in missing)}')
             return None
         h, w = left.shape[:2]
         for eye in EYES:
             if sizes[eye] not in ((w, h), (0, 0)):
-                self._skip('info_size', f'{self._info_topics[eye]} is for {sizes[eye][0]}x'
-                                        f'{sizes[eye][1]} images, got {w}x{h}')
+                self._skip(pair, INFO_SIZE_MISMATCH, f'{self._info_topics[eye]} is for '
+                                                     f'{sizes[eye][0]}x{sizes[eye][1]} images, '
+                                                     f'got {w}x{h}')
                 return None
         frames = {e: getattr(pair, e).header.frame_id for e in EYES}
         if not all(frames.values()):
-            self._skip('frame_id', 'an image has no frame_id: no camera pose')
+            self._skip(pair, NO_FRAME_ID, 'an image has no frame_id: no camera pose')
             return None
         try:
             ego_left = self._tf.lookup_transform(self._p['ego_frame'], frames['left'])
             left_right = self._tf.lookup_transform(frames['left'], frames['right'])
             rig = StereoRig.create(k['left'], k['right'], np.eye(4), left_right)
         except (LookupError, ValueError) as exc:
-            self._skip('tf', f'no usable camera poses: {exc}')
+            self._skip(pair, NO_CAMERA_POSE, f'no usable camera poses: {exc}')
             return None
         return np.ascontiguousarray(left), np.ascontiguousarray(right), rig, ego_left
 
@@ -533,6 +607,7 @@ class StereoSesNode(Node):
                                    f'{self._p["bias"]} bias (memory reset)')
         if in_saccade:                 # saccadic suppression: the image is blurred, poses move
             self.frames_in_saccade += 1
+            self._accept()             # not a refusal: the pair is ignored by design
             return
         prepared = self._prepare(pair)
         if prepared is None:
@@ -541,7 +616,7 @@ class StereoSesNode(Node):
         pipe = self._pipeline_for(left.shape[1], left.shape[0])
         frame = pipe.process(left, right, rig)
         if frame.means.shape[0] == 0:
-            self._skip('empty', f'no valid correspondences ({frame.rejected})')
+            self._skip(pair, NO_CORRESPONDENCES, f'rejected {frame.rejected}')
             return
         info = information(frame.covs)                                  # Eq. 3.45
         header = Header(stamp=pair.left.header.stamp, frame_id=pair.left.header.frame_id)
@@ -551,6 +626,7 @@ class StereoSesNode(Node):
             report = self._ses.fuse(frame.means, frame.covs, ego_left)
         self.last_report = report
         self.frames_fused += 1
+        self._accept()
         bad = {k: v for k, v in {**frame.rejected, **report.rejected}.items() if v}
         if bad:
             self.get_logger().debug(f'frame: {report.summary()}; stereo rejected {bad}')
@@ -598,7 +674,7 @@ class StereoSesNode(Node):
             refused = list(self._refused)
         candidates[refused] = False
         if not np.any(candidates):
-            self._warn('decision', 'no reachable cell above min_z_m: no fixation')
+            self._warn_throttled('decision', 'no reachable cell above min_z_m: no fixation')
             return
         decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
                                    candidates=candidates)

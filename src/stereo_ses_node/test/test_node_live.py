@@ -17,6 +17,7 @@ from stereo_ses_node import node as ses_node
 from stereo_ses_node.core.geometry import vergence_poses
 from stereo_ses_node.core.synthetic import plane_texture, render_plane
 from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
+from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import (
     Context, Node, Parameter, message, qos_profile_latched, qos_profile_system_default)
 from vizzy_runtime.tf import TF_STATIC_TOPIC
@@ -31,6 +32,7 @@ GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 TFMessage = message('tf2_msgs/msg/TFMessage')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
+DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 
 TIMEOUT = 30.0
 W, H = 320, 240
@@ -301,3 +303,104 @@ def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capfd) ->
     assert not ses.set_parameters([Parameter('ucb_alpha', value=-1.0)])[0].successful
     assert not ses.set_parameters([Parameter('bias_weights', value=[0.5, 0.5])])[0].successful
     assert ses.set_parameters([Parameter('ucb_alpha', value=float('inf'))])[0].successful
+
+
+def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypatch) -> None:
+    """Bad images and camera_info are refused and counted per (topic, reason) in input_health
+    (logged, on /diagnostics); the valid pair right after is fused; no exception escapes, and
+    one raised in a callback or the worker is counted too."""
+    rig, ses, executor = graph
+    health = ses.input_health
+    left, right = (ses._image_subs[e].topic_name for e in ('left', 'right'))
+    left_info = ses._info_subs['left'].topic_name
+    reports: list[Any] = []
+    rig.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, reports.append, 10)
+    rig.publish_info()
+    rig.publish_tf()
+    assert wait_until(lambda: len(ses._k) == 2 and ses._tf.can_transform('ego', FRAMES['right']),
+                      TIMEOUT, spin=executor)
+    assert health.refused() == {}
+    assert wait_until(lambda: health.accepted().get(left_info) == 1, TIMEOUT, spin=executor)
+
+    zero_k = CameraInfo(width=W, height=H)                    # fx = fy = 0: unusable
+    zero_k.header.frame_id = FRAMES['left']
+    zero_k.k = [0.0] * 9
+    rig.info_pubs['left'].publish(zero_k)
+    unknown = rig.image('left', 9000)
+    unknown.encoding = 'yuv9'
+    rig.image_pubs['left'].publish(unknown)
+    short = rig.image('right', 9000)
+    short.height = 2 * H                                      # more rows than the data holds
+    rig.image_pubs['right'].publish(short)
+    rig.image_pubs['left'].publish(rig.image('left', 9001))   # its right image never comes
+    expected = {(left_info, ses_node.UNUSABLE_K): 1,
+                (left, ses_node.UNSUPPORTED_ENCODING): 1,
+                (right, ses_node.SHORT_DATA): 1}
+    assert wait_until(lambda: health.refused() == expected and len(ses._unpaired['left']) == 1,
+                      TIMEOUT, spin=executor), health.refused()
+    assert ses._k['left'][0, 0] == pytest.approx(F)           # the last good K stays in use
+
+    # a valid pair: the waiting left image is dropped without a partner, the pair is fused
+    fused, accepted = ses.frames_fused, health.accepted()
+    rig.image_pubs['left'].publish(rig.image('left', 9002))
+    rig.image_pubs['right'].publish(rig.image('right', 9002))
+    assert wait_until(lambda: ses.frames_fused == fused + 1
+                      and any(p.header.stamp.sec == 100 + 9002 for p in rig.points),
+                      TIMEOUT, spin=executor)
+    expected[(left, ses_node.NO_PARTNER)] = 1
+    assert health.refused() == expected
+    now = health.accepted()
+    assert now[left] == accepted.get(left, 0) + 1 and now[right] == accepted.get(right, 0) + 1
+    # a valid camera_info after the bad one is accepted again
+    rig.publish_info()
+    assert wait_until(lambda: health.accepted().get(left_info) == accepted[left_info] + 1,
+                      TIMEOUT, spin=executor)
+
+    # /diagnostics: the node's status carries the counts
+    name = ses.get_fully_qualified_name()
+
+    def reported() -> dict[str, str] | None:
+        for array in reversed(reports):
+            for status in array.status:
+                if status.name == name:
+                    return {kv.key: kv.value for kv in status.values}
+        return None
+
+    assert wait_until(lambda: (reported() or {}).get(f'{left}: {ses_node.NO_PARTNER}') == '1',
+                      TIMEOUT, spin=executor), reported()
+    values = reported()
+    assert values[f'{left_info}: {ses_node.UNUSABLE_K}'] == '1'
+    assert values[f'{right}: {ses_node.SHORT_DATA}'] == '1'
+    # each first refusal logged once, naming topic and reason; nothing raised
+    err = capfd.readouterr().err
+    assert err.count(f'{left_info}: refused: {ses_node.UNUSABLE_K}') == 1, err
+    assert f"{left}: refused: {ses_node.UNSUPPORTED_ENCODING}: 'yuv9'" in err, err
+    assert f'{right}: refused: {ses_node.SHORT_DATA}' in err, err
+    assert f'{left}: refused: {ses_node.NO_PARTNER}: image stamped 9101.000 s' in err, err
+    assert 'Traceback' not in err
+    assert not any(reason.startswith('failed on') for _, reason in health.refused())
+
+    # an exception in a subscription callback (guarded) or in the worker: counted on its topic
+    def boom(*_: Any, **__: Any) -> None:
+        raise RuntimeError('on fire')
+
+    monkeypatch.setattr(ses_node, 'intrinsics', boom)
+    rig.publish_info()
+    right_info = ses._info_subs['right'].topic_name
+    for topic in (left_info, right_info):
+        expected[(topic, 'failed on a camera_info: RuntimeError')] = 1
+    assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
+        health.refused()
+    monkeypatch.setattr(ses, '_prepare', boom)
+    skipped = ses.frames_skipped
+    rig.image_pubs['left'].publish(rig.image('left', 9003))
+    rig.image_pubs['right'].publish(rig.image('right', 9003))
+    for topic in (left, right):
+        expected[(topic, f'{ses_node.PAIR_FAILED}: RuntimeError')] = 1
+    assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
+        health.refused()
+    assert ses.frames_skipped == skipped + 1
+    monkeypatch.undo()                       # and the node goes on
+    fused = ses.frames_fused
+    assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
+    assert 'refused: failed on a camera_info: RuntimeError: on fire' in capfd.readouterr().err

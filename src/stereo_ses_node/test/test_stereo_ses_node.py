@@ -47,9 +47,18 @@ def test_images_and_camera_info_are_checked() -> None:
     msg.encoding = 'bgr8'
     assert node.image_problem(msg) is None
     mono = numpy_to_image(np.zeros((48, 64), np.uint8), 'mono8')
-    assert 'encoding' in node.image_problem(mono)
+    reason, detail = node.image_problem(mono)
+    assert reason == node.UNSUPPORTED_ENCODING and "'mono8'" in detail
     msg.height = 100  # more rows than the data holds
-    assert 'bytes' in node.image_problem(msg)
+    reason, detail = node.image_problem(msg)
+    assert reason == node.SHORT_DATA and 'bytes' in detail
+    msg.height, msg.step = 48, 100  # a row is 192 bytes
+    assert node.image_problem(msg)[0] == node.SHORT_STEP
+    msg.width = 0
+    assert node.image_problem(msg)[0] == node.EMPTY_IMAGE
+    assert all(r == r.strip() and not any(c.isdigit() for c in r)
+               for r in node.IMAGE_REASONS + node.PAIR_REASONS + (node.NO_PARTNER,
+                                                                  node.UNUSABLE_K))
     info = node.CameraInfo(width=64, height=48)
     info.k = [50.0, 0.0, 32.0, 0.0, 50.0, 24.0, 0.0, 0.0, 1.0]
     assert np.allclose(node.intrinsics(info)[0], [50.0, 0.0, 32.0])

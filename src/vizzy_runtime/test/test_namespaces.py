@@ -27,7 +27,7 @@ Image = message('sensor_msgs/msg/Image')
 JointState = message('sensor_msgs/msg/JointState')
 
 # Topics every node has outside its namespace, as in any ROS 2 node.
-ABSOLUTE = {'/parameter_events', '/rosout'}
+ABSOLUTE = {'/parameter_events', '/rosout', '/diagnostics'}  # /diagnostics: absolute, as diagnostic_updater's
 TF = {('sub', '/tf'), ('sub', '/tf_static')}
 # The resolved names in the default graph (docs/architecture.md), per node: what users see.
 DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {

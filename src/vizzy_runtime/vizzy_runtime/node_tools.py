@@ -411,7 +411,8 @@ def guarded(node: Any, what: str, callback: Callable[..., Any] | None = None, *,
                 now = time.monotonic()
                 if now - last[0] >= throttle_s:
                     last[0] = now
-                    node.get_logger().error(f'{what}: {type(exc).__name__}: {exc}')
+                    where = f'{topic}: ' if topic is not None else ''
+                    node.get_logger().error(f'{where}{what}: {type(exc).__name__}: {exc}')
                 return None
         return run_guarded
 

@@ -253,12 +253,12 @@ class TransformListener:
         self._subs = [
             node.create_subscription(
                 tf_message, tf_topic,
-                guarded(node, f'{node.resolve_topic_name(tf_topic)}: skipped a TFMessage',
-                        self._on_tf), dynamic_qos),
+                guarded(node, 'skipped a TFMessage', self._on_tf,
+                        topic=node.resolve_topic_name(tf_topic)), dynamic_qos),
             node.create_subscription(
                 tf_message, tf_static_topic,
-                guarded(node, f'{node.resolve_topic_name(tf_static_topic)}: skipped a TFMessage',
-                        self._on_tf),
+                guarded(node, 'skipped a TFMessage', self._on_tf,
+                        topic=node.resolve_topic_name(tf_static_topic)),
                 static_qos),
         ]
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import publish_until, spinning, wait_until
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
     LEFT_OPTICAL_FRAME, RIGHT_OPTICAL_FRAME, GazeSplit, home_posture, joint_limits,
@@ -271,3 +271,76 @@ def test_rates_can_be_changed_at_run_time(head_and_controller):
     assert wait_until(lambda: len(head.states) > n + 3, TIMEOUT, spin=spin)
     too_fast = controller.set_parameters([Parameter('max_velocity_rad_s', value=50.0)])[0]
     assert not too_fast.successful and 'max_velocity_rad_s' in too_fast.reason
+
+
+def test_refused_inputs_are_counted_per_topic_and_reason(head_and_controller, capfd):
+    """Bad joint states and bad commands are counted by InputHealth per (topic, reason), and the
+    valid input right after them is processed; nothing escapes a callback (an escaped exception
+    would be counted as '<what>: <ExcType>' on its topic, or end the spin)."""
+    head, controller, spin = head_and_controller
+    health = controller.input_health
+    commands = controller._gaze_sub.topic_name
+    joint_states = controller._joint_states_sub.topic_name
+
+    # /joint_states (before any command: the head stays where the test puts it). Best effort: each
+    # bad message is sent again until counted, since a sample may be dropped.
+    bad_states = {
+        'length mismatch': JointState(name=NAMES, position=[0.0, 0.1]),
+        'non-finite position': JointState(name=NAMES,
+                                          position=[math.nan] + [0.0] * (len(NAMES) - 1)),
+    }
+    sent = dict.fromkeys(bad_states, 0)
+    for reason, msg in bad_states.items():
+        def publish(reason: str = reason, msg: Any = msg) -> None:
+            sent[reason] += 1
+            head.joint_pub.publish(msg)
+        assert publish_until(publish, lambda reason=reason: (joint_states, reason)
+                             in health.refused(), spin, TIMEOUT), reason
+    refused = health.refused()
+    assert set(refused) == {(joint_states, reason) for reason in bad_states}, refused
+    for reason, count in sent.items():
+        assert 1 <= refused[(joint_states, reason)] <= count
+    # the head's valid joint states right after are used: move it, the controller measures it
+    accepted = health.accepted().get(joint_states, 0)
+    moved = home_posture() + 0.05
+    head.joints = moved.copy()
+    assert wait_until(lambda: controller._measured is not None
+                      and np.allclose(controller._measured, moved, atol=1e-12), TIMEOUT, spin=spin)
+    assert health.accepted().get(joint_states, 0) > accepted
+    assert health.refused() == refused
+
+    # /gaze/command: reliable, depth 10, so every one arrives, in order; the reason is the status
+    base = {'source': 'test', 'priority': 0, 'motion': GazeCommand.MOTION_SACCADE}
+    bad = [
+        (dict(point=(math.nan, 0.0, 1.0), frame_id='ego'), 'REJECTED_NAN'),
+        (dict(point=(1.0, 0.0, 0.0), frame_id='ego', hold_time=math.inf), 'REJECTED_NAN'),
+        (dict(point=(1.0, 0.0, 0.0), frame_id='nowhere'), 'REJECTED_UNKNOWN_FRAME'),
+        (dict(point=(-2.0, 0.0, 0.0), frame_id='ego'), 'REJECTED_UNREACHABLE'),
+        (dict(mode=GazeCommand.MODE_JOINT_TARGETS, joint_names=['l_eye_joint'],
+              joint_positions=[5.0]), 'REJECTED_UNREACHABLE'),
+        (dict(point=(1.0, 0.0, 0.0), frame_id='ego', motion=7), 'REJECTED_INVALID'),
+        (dict(mode=GazeCommand.MODE_JOINT_TARGETS, joint_names=['elbow'],
+              joint_positions=[0.1]), 'REJECTED_INVALID'),
+    ]
+    expected = dict(refused)
+    for fields, reason in bad:
+        head.send(**{**base, **fields})
+        expected[(commands, reason)] = expected.get((commands, reason), 0) + 1
+    # a valid command right after: accepted and driven to
+    n = len(head.states)
+    head.send(point=(1.5, 0.2, 0.0), frame_id='ego', source='good', priority=5, hold_time=60.0)
+    _wait_status(head, spin, n, GazeState.STATUS_OK, source='good')
+    assert wait_until(lambda: len(head.commands) > 0, TIMEOUT, spin=spin)
+    assert health.refused() == expected
+    assert health.accepted().get(commands) == 1
+    # losing arbitration is no refusal of bad input: it counts as accepted
+    n = len(head.states)
+    head.send(point=(1.5, -0.2, 0.0), frame_id='ego', source='low', priority=1)
+    _wait_status(head, spin, n, GazeState.STATUS_PREEMPTED, "'low' (priority 1) lost to 'good'")
+    assert health.refused() == expected and health.accepted().get(commands) == 2
+
+    # each reason logged (its first occurrence, then throttled), never as a traceback
+    err = capfd.readouterr().err
+    for reason in [r for _, r in bad] + list(bad_states):
+        assert f': refused: {reason}' in err, (reason, err)
+    assert 'Traceback' not in err, err

@@ -211,6 +211,66 @@ def test_bad_commands_are_rejected_and_the_node_keeps_going(running) -> None:
                       spin=spin)
 
 
+def _changes(before: dict[Any, int], after: dict[Any, int]) -> dict[Any, int]:
+    """How much each count grew from before to after (counts that did not are left out)."""
+    return {k: v - before.get(k, 0) for k, v in after.items() if v != before.get(k, 0)}
+
+
+def test_refused_commands_are_counted_per_reason(running) -> None:
+    """Each command rejected whole is counted by InputHealth on the resolved command topic with
+    its reason; a clamped target is no refusal; the valid command right after is processed; no
+    exception escapes (one would be counted as 'failed on a command: <ExcType>')."""
+    sim, listener, spin = running
+    topic = sim._command_sub.topic_name
+    health = sim.input_health
+    refused, accepted = health.refused(), health.accepted()   # the module's earlier tests' too
+    targets = sim._sim.targets()
+    pub = listener.commands
+    # reliable, depth 10: all eight arrive, in order
+    pub.publish(JointState(name=['elbow_joint'], position=[0.3]))
+    pub.publish(JointState(name=['l_eye_joint', 'l_eye_joint'], position=[0.1, 0.2]))
+    pub.publish(JointState(name=['l_eye_joint'], position=[math.nan]))
+    pub.publish(JointState(name=['neck_pan_joint', 'l_eye_joint'], position=[0.1, -math.inf]))
+    pub.publish(JointState(name=['l_eye_joint', 'r_eye_joint'], position=[0.1]))
+    pub.publish(JointState(name=[], position=[]))
+    listener.command(r_eye_joint=-5.0)          # beyond the limit: clamped, not refused
+    listener.command(neck_tilt_joint=-0.05)     # valid, right after
+    assert wait_until(lambda: sim._sim.targets()['neck_tilt_joint'] == -0.05, TIMEOUT, spin=spin)
+    assert _changes(refused, health.refused()) == {
+        (topic, 'unknown joint'): 1, (topic, 'repeated joint'): 1,
+        (topic, 'non-finite target'): 2, (topic, 'length mismatch'): 1,
+        (topic, 'no joint names'): 1}
+    assert _changes(accepted, health.accepted()) == {topic: 2}
+    after = sim._sim.targets()
+    assert after['r_eye_joint'] == JOINT_LIMITS['r_eye_joint'][0]
+    assert {k: after[k] for k in ('l_eye_joint', 'neck_pan_joint')} == {
+        k: targets[k] for k in ('l_eye_joint', 'neck_pan_joint')}
+    assert topic == '/vizzy/joint_commands'
+
+
+def test_a_command_the_handler_fails_on_is_counted(running, monkeypatch) -> None:
+    """An exception in the command callback is swallowed by guarded() and counted as a refusal of
+    the command topic (reason 'failed on a command: <ExcType>'); the next command is processed."""
+    sim, listener, spin = running
+    topic = sim._command_sub.topic_name
+    health = sim.input_health
+    refused, accepted = health.refused(), health.accepted()
+    set_targets = sim._sim.set_targets
+
+    def failing(targets: Any, speeds: Any = None) -> Any:
+        if 'eyes_tilt_joint' in targets:
+            raise RuntimeError('simulated failure')
+        return set_targets(targets, speeds)
+
+    monkeypatch.setattr(sim._sim, 'set_targets', failing)
+    listener.command(eyes_tilt_joint=0.1)
+    listener.command(neck_tilt_joint=-0.04)
+    assert wait_until(lambda: sim._sim.targets()['neck_tilt_joint'] == -0.04, TIMEOUT, spin=spin)
+    assert _changes(refused, health.refused()) == {
+        (topic, 'failed on a command: RuntimeError'): 1}
+    assert _changes(accepted, health.accepted()) == {topic: 1}
+
+
 def test_image_box_projects_and_clips() -> None:
     k = camera_matrix(640, 480, 85.4)
     cam = frames_in_base([0.0] * 5)['left_camera_optical_frame']

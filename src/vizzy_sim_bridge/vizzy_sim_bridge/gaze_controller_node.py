@@ -6,6 +6,7 @@ Topics (relative names; the resolved ones at the root namespace)
   in   /tf, /tf_static        tf2_msgs/TFMessage               (vizzy_runtime.tf, latched static)
   out  /vizzy/joint_commands  sensor_msgs/JointState (name + position setpoints, control_rate_hz)
   out  /gaze/state            active_vision_msgs/GazeState     (state_rate_hz, and per command)
+  out  /diagnostics           diagnostic_msgs/DiagnosticArray  (about 1 Hz: input health)
 
 What it does with a command (the ROS-free parts are in core/gaze.py):
 1. Validation. NaN/inf (point, targets, hold_time) -> STATUS_REJECTED_NAN; a frame_id not in
@@ -35,6 +36,21 @@ How /gaze/state tells who won. status and status_message describe the most recen
   outcome is on the wire even when commands come faster than state_rate_hz.
 So a sender knows it is being served while active_source equals its own source.
 
+Refused inputs (vizzy_runtime.input_health.InputHealth, self.input_health) are counted per
+(resolved topic, reason), the first of each logged in one line, then at most every 5 s per reason
+with the count so far, and published on /diagnostics (WARN while refusals happen):
+- /gaze/command: every command answered with a REJECTED_* status, the reason being the status
+  name ('REJECTED_NAN', 'REJECTED_UNKNOWN_FRAME', 'REJECTED_UNREACHABLE', 'REJECTED_INVALID';
+  a command the handler fails on is REJECTED_INVALID), the detail its status_message and source.
+  A command that lost arbitration (PREEMPTED) was valid input: it counts as accepted, as does
+  every STATUS_OK one. GazeState still reports each command's status as above.
+- /joint_states: 'length mismatch' (name and position lengths differ: the message is dropped);
+  'non-finite position' (a NaN/inf position of a head joint: those values are skipped, the
+  message's finite ones still used). Other messages count as accepted; names of joints that are
+  not the head's are ignored, not refused.
+- on either topic, '<what>: <ExcType>' for an exception escaping the callback (guarded(topic=)).
+/tf and /tf_static are taken by vizzy_runtime.tf's listener, which counts nothing here.
+
 in_saccade is true from the start of a saccade until the trajectory has ended and the measured
 /joint_states are within settle_tolerance_rad of the target (or settle_timeout_s after the end,
 or at once without joint states). fixation_point is the accepted fixation (for joint targets,
@@ -50,6 +66,7 @@ from typing import Any
 
 import numpy as np
 
+from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
@@ -150,17 +167,20 @@ class GazeControllerNode(Node):
         self._claim: Claim | None = None
         self._fixation = fixation_point(self._target, self._p['max_fixation_distance_m'])
         self._status, self._status_message = GazeStatus.IDLE, 'no command yet'
+        # refused inputs, per topic and reason, on /diagnostics; before any subscription
+        self.input_health = InputHealth(self)
 
         self.tf_buffer = TransformBuffer()
         self._tf_listener = TransformListener(self.tf_buffer, self)
         self._state_pub = self.create_publisher(GazeState, STATE_TOPIC, 10)
         self._command_pub = self.create_publisher(JointState, JOINT_COMMANDS_TOPIC, 10)
-        self._gaze_topic = self.resolve_topic_name(COMMAND_TOPIC)   # for log lines
+        self._gaze_topic = self.resolve_topic_name(COMMAND_TOPIC)   # for logs and counters
+        self._joint_states_topic = self.resolve_topic_name(JOINT_STATES_TOPIC)
         self._gaze_sub = self.create_subscription(GazeCommand, COMMAND_TOPIC, guarded(
-            self, f'{self._gaze_topic}: failed on a command', self._on_command), 10)
+            self, 'failed on a command', self._on_command, topic=self._gaze_topic), 10)
         self._joint_states_sub = self.create_subscription(JointState, JOINT_STATES_TOPIC, guarded(
-            self, f'{self.resolve_topic_name(JOINT_STATES_TOPIC)}: skipped a message',
-            self._on_joint_states), qos_profile_sensor_data)
+            self, 'skipped a message', self._on_joint_states, topic=self._joint_states_topic),
+            qos_profile_sensor_data)
         self._control_timer = self.create_timer(
             1.0 / self._p['control_rate_hz'],
             guarded(self, 'control step failed', self._on_control))
@@ -182,18 +202,30 @@ class GazeControllerNode(Node):
         return self._seconds(self.get_clock().now().nanoseconds)
 
     def _on_joint_states(self, msg: Any) -> None:
+        topic = self._joint_states_topic
         names, positions = list(msg.name), list(msg.position)
         if len(names) != len(positions):
-            raise ValueError(f'{len(names)} names but {len(positions)} positions')
+            self.input_health.refuse(topic, 'length mismatch',
+                                     f'{len(names)} names but {len(positions)} positions')
+            return
         measured = (self._measured.copy() if self._measured is not None
                     else (self._setpoint.copy() if self._setpoint is not None else home_posture()))
+        skipped = []
         for name, value in zip(names, positions):
-            if name in self._names and math.isfinite(value):
-                i = self._names.index(name)
-                measured[i] = float(value)
-                self._measured_mask[i] = True
+            if name not in self._names:
+                continue   # another joint of the robot
+            if not math.isfinite(value):
+                skipped.append(f'{name}={value}')
+                continue
+            i = self._names.index(name)
+            measured[i] = float(value)
+            self._measured_mask[i] = True
         if self._measured_mask.any():
             self._measured = measured
+        if skipped:   # the message's finite positions are still used
+            self.input_health.refuse(topic, 'non-finite position', ', '.join(skipped))
+        else:
+            self.input_health.accept(topic)
 
     def _current(self) -> np.ndarray:
         """Where the head is commanded to be (or measured, or home, before the first command)."""
@@ -204,10 +236,10 @@ class GazeControllerNode(Node):
         return home_posture()
 
     def _reject(self, cmd: Any, error: GazeError) -> None:
+        """Report the refusal on /gaze/state (status) and count it (logged, then throttled)."""
         self._status, self._status_message = error.status, str(error)
-        self.get_logger().warning(
-            f'{self._gaze_topic}: rejected a command from {cmd.source or "<no source>"!r}: '
-            f'{error.status.name}: {error}', throttle_duration_sec=1.0)
+        self.input_health.refuse(self._gaze_topic, error.status.name,
+                                 f'{error} (source {str(cmd.source) or "<none>"!r})')
 
     def _on_command(self, cmd: Any) -> None:
         try:
@@ -217,6 +249,8 @@ class GazeControllerNode(Node):
         except Exception as exc:  # malformed message: report it, keep running
             self._reject(cmd, GazeError(GazeStatus.REJECTED_INVALID,
                                         f'{type(exc).__name__}: {exc}'))
+        else:   # STATUS_OK or PREEMPTED: valid input either way
+            self.input_health.accept(self._gaze_topic)
         self._publish_state()
 
     def _handle_command(self, cmd: Any) -> None:

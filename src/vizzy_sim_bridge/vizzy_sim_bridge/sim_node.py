@@ -13,6 +13,7 @@ Publishes (frames and QoS in docs/vizzy_sim_bridge.md):
   /joint_states, /tf                                       every 1/joint_state_rate_hz, and at
                                                            each image's stamp
   /tf_static (latched), /clock
+  /diagnostics (diagnostic_msgs/DiagnosticArray, about 1 Hz): this node's input health
   /sim/ground_truth/objects (MarkerArray, latched): every object with its dimensions;
       cylinders also as an axis arrow (ns cylinder_axes)
   /sim/ground_truth/pedestrians (MarkerArray, 3D boxes) and
@@ -20,8 +21,20 @@ Publishes (frames and QoS in docs/vizzy_sim_bridge.md):
       in that camera's image [px]), pedestrians scene only, with each stereo pair
 Subscribes:
   /vizzy/joint_commands (sensor_msgs/JointState): name + position targets [rad]; velocity (if
-      given, same length) caps each joint's speed. Out-of-range targets are clamped with a
-      warning; unknown names, NaN or mismatched lengths reject the message with an error log.
+      given, same length) caps each joint's speed. Out-of-range targets are clamped, with a
+      warning per joint at most every 2 s; that is no refusal, the message is processed.
+
+Refused inputs (vizzy_runtime.input_health.InputHealth, self.input_health): every command
+rejected whole is counted per (topic, reason), its first occurrence logged (then at most every
+5 s per reason, with the count), and the counts are published on /diagnostics (WARN while
+refusals happen). Reasons on the resolved /vizzy/joint_commands:
+  'no joint names'     name is empty
+  'length mismatch'    name and position differ in length
+  'unknown joint'      a name that is not one of the five head joints
+  'repeated joint'     a name given twice
+  'non-finite target'  a NaN or infinite position
+  'failed on a command: <ExcType>'  the handler raised (guarded(topic=...))
+A processed command (clamped or not) counts as accepted on that topic.
 """
 
 from __future__ import annotations
@@ -37,6 +50,7 @@ import mujoco
 import numpy as np
 
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
+from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (Param, declare_parameters, guarded, main_for,
                                       publish_from_thread, replace_timer)
 from vizzy_runtime.ros import (
@@ -245,6 +259,8 @@ class SimNode(Node):
         p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_parameters,
                                on_change=self._on_parameters_changed)
         self._p = p
+        # refused inputs, per topic and reason, on /diagnostics; before any subscription
+        self.input_health = InputHealth(self)
         self._publish_clock = bool(p['publish_clock'])
         # Any order with declare_parameters' callbacks: the table applies changes post-set.
         self.add_on_set_parameters_callback(self._refuse_sim_time)
@@ -309,9 +325,9 @@ class SimNode(Node):
                 MarkerArray, f'{GROUND_TRUTH_TOPIC}/pedestrians', 10)
             self._gt_boxes_pubs = {e: self.create_publisher(
                 TrackArray, f'{GROUND_TRUTH_TOPIC}/{e}/pedestrians', 10) for e in EYES}
-        self._command_topic = self.resolve_topic_name(COMMAND_TOPIC)   # for log lines
+        self._command_topic = self.resolve_topic_name(COMMAND_TOPIC)   # for logs and counters
         self._command_sub = self.create_subscription(JointState, COMMAND_TOPIC, guarded(
-            self, f'{self._command_topic}: failed on a command', self._on_joint_command), 10)
+            self, 'failed on a command', self._on_joint_command, topic=self._command_topic), 10)
 
         now = self._now(self._sim.time)
         world = Transform('world', 'base_link', (0.0, 0.0, WAIST_HEIGHT), (0.0, 0.0, 0.0, 1.0))
@@ -542,33 +558,36 @@ class SimNode(Node):
             publish_from_thread(self, self._gt_boxes_pubs[e], msg)
 
     # ------------------------------------------------------------------ commands
+    @staticmethod
+    def _command_problem(names: list[str], positions: list[float]) -> tuple[str, str] | None:
+        """(reason, detail) for a joint command to reject whole, or None if it is usable."""
+        if not names:
+            return 'no joint names', f'{len(positions)} positions'
+        if len(names) != len(positions):
+            return 'length mismatch', f'{len(names)} names but {len(positions)} positions'
+        unknown = [n for n in names if n not in JOINT_LIMITS]
+        if unknown:
+            return 'unknown joint', f'{unknown}; known: {", ".join(JOINT_NAMES)}'
+        if len(set(names)) != len(names):
+            return 'repeated joint', f'in {names}'
+        bad = [f'{n}={v}' for n, v in zip(names, positions) if not math.isfinite(v)]
+        if bad:
+            return 'non-finite target', ', '.join(bad)
+        return None
+
     def _on_joint_command(self, msg: Any) -> None:
+        topic = self._command_topic
         names = list(msg.name)
         positions = [float(v) for v in msg.position]
         velocities = [float(v) for v in msg.velocity]
-        log = self.get_logger()
-        if not names:
-            log.error(f'{self._command_topic}: rejected: no joint names')
-            return
-        if len(names) != len(positions):
-            log.error(f'{self._command_topic}: rejected: {len(names)} names but {len(positions)} '
-                      'positions')
-            return
-        unknown = [n for n in names if n not in JOINT_LIMITS]
-        if unknown:
-            log.error(f'{self._command_topic}: rejected: unknown joints {unknown}; known: '
-                      f'{", ".join(JOINT_NAMES)}')
-            return
-        if len(set(names)) != len(names):
-            log.error(f'{self._command_topic}: rejected: repeated joint names in {names}')
-            return
-        bad = [f'{n}={v}' for n, v in zip(names, positions) if not math.isfinite(v)]
-        if bad:
-            log.error(f'{self._command_topic}: rejected: non-finite targets {bad}')
+        problem = self._command_problem(names, positions)
+        if problem is not None:
+            self.input_health.refuse(topic, *problem)   # logged first time, then throttled
             return
         speeds = dict(zip(names, velocities)) if len(velocities) == len(names) else None
         for note in self._sim.set_targets(dict(zip(names, positions)), speeds):
-            self._warn_throttled(note.split()[0], f'{self._command_topic}: {note}')
+            self._warn_throttled(note.split()[0], f'{topic}: {note}')   # clamped: no refusal
+        self.input_health.accept(topic)
 
     # ------------------------------------------------------------------ parameters, shutdown
     def _refuse_sim_time(self, params: list[Any]) -> Any:
