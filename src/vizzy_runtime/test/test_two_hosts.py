@@ -1,0 +1,108 @@
+"""The graph across two hosts, on request: two network namespaces joined by a veth pair, the
+simulator and the gaze controller on one, foveation on the other, both with the LAN opt-in
+(VIZZY_DDS_LAN=1: Cyclone's defaults, i.e. the veth interface and multicast discovery). The second
+host sees the simulator's camera and foveation's output computed from it; a process there without
+the opt-in (loopback only, the default) sees nothing of the first host. The namespaces have no
+other link, so nothing leaves them. Skipped, with the reason, without root or iproute2."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mixed_support import graph_subset  # noqa: E402
+
+PROBE = r'''
+import json, sys, time
+from vizzy_runtime import dds
+topics = {'/vizzy/left/camera_info': 'sensor_msgs/msg/CameraInfo',
+          '/foveation/image': 'sensor_msgs/msg/Image'}
+readers = {t: dds.RawReader(t, ty, dds.QoS(reliable=False)) for t, ty in topics.items()}
+counts = dict.fromkeys(topics, 0)
+deadline = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < deadline and not all(counts.values()):
+    for t, r in readers.items():
+        counts[t] += len(r.take(16))
+    time.sleep(0.05)
+print(json.dumps(counts))
+'''
+
+
+def _ip(*args: str) -> None:
+    subprocess.run(['ip', *args], check=True, capture_output=True, text=True, timeout=30)
+
+
+@pytest.fixture
+def two_hosts():
+    if os.geteuid() != 0 or shutil.which('ip') is None:
+        pytest.skip('needs root and iproute2 to make network namespaces')
+    n = random.randint(1000, 9999)
+    hosts = (f'vza{n}', f'vzb{n}')
+    try:
+        for host in hosts:
+            _ip('netns', 'add', host)
+        _ip('link', 'add', f'va{n}', 'type', 'veth', 'peer', 'name', f'vb{n}')
+        for host, dev, addr in ((hosts[0], f'va{n}', '10.77.0.1/24'), (hosts[1], f'vb{n}', '10.77.0.2/24')):
+            _ip('link', 'set', dev, 'netns', host)
+            _ip('-n', host, 'addr', 'add', addr, 'dev', dev)
+            _ip('-n', host, 'link', 'set', dev, 'up')
+            _ip('-n', host, 'link', 'set', 'lo', 'up')
+    except (subprocess.CalledProcessError, OSError) as exc:
+        for host in hosts:
+            subprocess.run(['ip', 'netns', 'del', host], capture_output=True)
+        pytest.skip(f'cannot make network namespaces here: {getattr(exc, "stderr", "") or exc}')
+    yield hosts
+    for host in hosts:
+        subprocess.run(['ip', 'netns', 'del', host], capture_output=True)
+
+
+def _in(host: str, args: list[str], lan: bool, **kw) -> subprocess.Popen:
+    env = {**os.environ, 'PYTHONUNBUFFERED': '1'}
+    env.pop('VIZZY_DDS_LAN', None)
+    if lan:
+        env['VIZZY_DDS_LAN'] = '1'
+    return subprocess.Popen(['ip', 'netns', 'exec', host, sys.executable, *args], env=env, **kw)
+
+
+def _stop(proc: subprocess.Popen) -> str:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    out = proc.stdout.read() if proc.stdout else ''
+    return out[-3000:]
+
+
+def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):
+    host_a, host_b = two_hosts
+    sim = graph_subset(tmp_path / 'a.yaml', ['sim', 'gaze_controller'])
+    perception = graph_subset(tmp_path / 'b.yaml', ['foveation'])
+    launch = ['-m', 'vizzy_runtime.cli', 'launch', '--duration', '300']
+    a = _in(host_a, [*launch, str(sim)], lan=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            text=True)
+    b = _in(host_b, [*launch, str(perception)], lan=True, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True)
+    try:
+        seen = _in(host_b, ['-c', PROBE, '120'], lan=True, stdout=subprocess.PIPE, text=True)
+        counts = json.loads(seen.communicate(timeout=180)[0])
+        local = _in(host_b, ['-c', PROBE, '8'], lan=False, stdout=subprocess.PIPE, text=True)
+        local_counts = json.loads(local.communicate(timeout=60)[0])
+    finally:
+        log_a, log_b = _stop(a), _stop(b)
+    where = f'host A:\n{log_a}\nhost B:\n{log_b}'
+    assert counts['/vizzy/left/camera_info'] > 0, f'no camera from host A: {counts}\n{where}'
+    assert counts['/foveation/image'] > 0, f'no foveation output on host B: {counts}\n{where}'
+    assert local_counts == {'/vizzy/left/camera_info': 0, '/foveation/image': 0}, local_counts
+    assert a.returncode == 0 and b.returncode == 0, where
