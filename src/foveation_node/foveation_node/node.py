@@ -56,7 +56,8 @@ in a saccade, for a frame taken before the last saccade began, within saccade_mi
 the previous one, for a score below saccade_min_score or a box centre within
 saccade_min_offset_px of the principal point. model_path / labels_path: a TorchScript file and
 its labels (package://foveation_node/... means inside the installed package; an empty
-model_path disables recognition); a file that does not load is logged and recognition stays off.
+model_path disables recognition); a path that is no file is refused like any bad parameter value
+(at start-up: one line and exit 2); a file that does not load is logged and recognition stays off.
 Algorithms live in foveation_node.core; this module only wires them to topics and parameters.
 """
 
@@ -201,6 +202,13 @@ def check_parameter(name: str, value: Any) -> str | None:
                 f'realises no less), got {value}')
     if name in ('fixation_u', 'fixation_v') and not math.isfinite(value):
         return f'{name} must be finite, got {value}'
+    if name in ('model_path', 'labels_path') and value:
+        try:
+            path = resolve_path(value)
+        except ModelError as exc:
+            return str(exc)
+        if not path.is_file():
+            return f'no such file {path}'
     return None
 
 

@@ -65,6 +65,9 @@ def test_parameter_checks() -> None:
         assert refused('top_k', 0) and refused('top_k', 2.0) and refused('top_k', 5) is None
         assert refused('recognition_rate_hz', 0.0) and refused('recognition_rate_hz', 0.5) is None
         assert refused('model_path', 3) and refused('model_path', '') is None
+        assert 'no such file' in refused('model_path', '/no/such/model.pt')
+        assert 'no such file' in refused('labels_path', '/no/such/labels.txt')
+        assert refused('model_path', node.DEFAULT_MODEL) is None
         assert refused('saccade_distance_m', 0.05) and refused('saccade_min_score', float('nan'))
         assert refused('saccades_enabled', 'yes') and refused('saccade_hold_time_s', 0.0) is None
 
