@@ -8,6 +8,7 @@ JSON object:
   rss_mb_start / rss_mb_end / rss_growth_pct   per node
   rate_hz_first / rate_hz_last                 per output topic
   respawned, exit_codes                         what the launcher saw
+  stop_seconds_after_sigint                     per node, from the launcher's SIGINT to its exit
 
     .venv/bin/python bench/soak.py [--duration 600] [--warmup 60] [--window 60]
 """
@@ -86,7 +87,8 @@ def main() -> int:
         'rss_growth_pct': {n: round(100 * (end_rss[n] - start_rss[n]) / start_rss[n], 2)
                            for n in start_rss if start_rss[n]},
         'rate_hz_first': first, 'rate_hz_last': last,
-        'respawned': launcher.respawned, 'exit_codes': codes, 'launch_log': log.name,
+        'respawned': launcher.respawned, 'exit_codes': codes,
+        'stop_seconds_after_sigint': launcher.stop_seconds, 'launch_log': log.name,
     }
     print(json.dumps(result))
     return 0

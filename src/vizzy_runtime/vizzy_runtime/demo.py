@@ -187,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     print('\nnodes (exit code after SIGINT; 0 = clean shutdown):')
     for name, code in codes.items():
         extra = f'  (needed {launcher.escalated[name]})' if name in launcher.escalated else ''
+        took = launcher.stop_seconds.get(name)
+        extra += f'  stopped {took:.2f} s after SIGINT' if took is not None else ''
         print(f'  {name:20} {code}{extra}')
     if summary['picture']:
         print(f'\nboth cameras: {summary["picture"]}')

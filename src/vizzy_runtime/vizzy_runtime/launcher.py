@@ -270,6 +270,7 @@ class Launcher:
         self.procs: dict[str, subprocess.Popen[str]] = {}
         self.escalated: dict[str, str] = {}  # node -> the signal it needed beyond SIGINT, and why
         self.respawned: dict[str, int] = {}  # node -> times it was started again
+        self.stop_seconds: dict[str, float] = {}  # node -> seconds from stop()'s SIGINT to its exit
         self._commands: dict[str, tuple[NodeSpec, list[str], int]] = {}
         self._threads: list[threading.Thread] = []
         self._stopping = threading.Event()
@@ -362,6 +363,7 @@ class Launcher:
             self._supervisor.join()
         try:
             previous: tuple[str, float] | None = None
+            stop_started = time.monotonic()
             for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
                 alive = {n: p for n, p in self.procs.items() if p.poll() is None}
                 if not alive:
@@ -378,7 +380,13 @@ class Launcher:
                         pass
                 end = time.monotonic() + grace
                 while time.monotonic() < end and any(p.poll() is None for p in alive.values()):
-                    time.sleep(0.05)
+                    for name, proc in alive.items():
+                        if name not in self.stop_seconds and proc.poll() is not None:
+                            self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
+                    time.sleep(0.02)
+                for name, proc in alive.items():
+                    if name not in self.stop_seconds and proc.poll() is not None:
+                        self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
                 previous = (signal.Signals(sig).name, grace)
             for t in self._threads:
                 t.join(timeout=1.0)
