@@ -74,15 +74,14 @@ def _in(host: str, args: list[str], lan: bool, **kw) -> subprocess.Popen:
     return subprocess.Popen(['ip', 'netns', 'exec', host, sys.executable, *args], env=env, **kw)
 
 
-def _stop(proc: subprocess.Popen) -> str:
+def _stop(proc: subprocess.Popen) -> None:
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
         try:
             proc.wait(60)
         except subprocess.TimeoutExpired:
             proc.kill()
-    out = proc.stdout.read() if proc.stdout else ''
-    return out[-3000:]
+            proc.wait(30)
 
 
 def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):
@@ -90,17 +89,19 @@ def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):
     sim = graph_subset(tmp_path / 'a.yaml', ['sim', 'gaze_controller'])
     perception = graph_subset(tmp_path / 'b.yaml', ['foveation'])
     launch = ['-m', 'vizzy_runtime.cli', 'launch', '--duration', '300']
-    a = _in(host_a, [*launch, str(sim)], lan=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-            text=True)
-    b = _in(host_b, [*launch, str(perception)], lan=True, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True)
+    # output to files: a pipe nobody reads fills up and blocks the launcher and its nodes
+    logs = {name: open(tmp_path / f'{name}.log', 'w+') for name in ('a', 'b')}
+    a = _in(host_a, [*launch, str(sim)], lan=True, stdout=logs['a'], stderr=subprocess.STDOUT)
+    b = _in(host_b, [*launch, str(perception)], lan=True, stdout=logs['b'], stderr=subprocess.STDOUT)
     try:
         seen = _in(host_b, ['-c', PROBE, '120'], lan=True, stdout=subprocess.PIPE, text=True)
         counts = json.loads(seen.communicate(timeout=180)[0])
         local = _in(host_b, ['-c', PROBE, '8'], lan=False, stdout=subprocess.PIPE, text=True)
         local_counts = json.loads(local.communicate(timeout=60)[0])
     finally:
-        log_a, log_b = _stop(a), _stop(b)
+        _stop(a)
+        _stop(b)
+    log_a, log_b = (logs[n].seek(0) or logs[n].read()[-3000:] for n in ('a', 'b'))
     where = f'host A:\n{log_a}\nhost B:\n{log_b}'
     assert counts['/vizzy/left/camera_info'] > 0, f'no camera from host A: {counts}\n{where}'
     assert counts['/foveation/image'] > 0, f'no foveation output on host B: {counts}\n{where}'
