@@ -150,14 +150,20 @@ def _pid_running(pid: int) -> bool:
         return False
 
 
-@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGHUP])
-def test_sigterm_or_sighup_to_the_launcher_stops_every_node(tmp_path, sig):
-    """What timeout, systemd, docker stop and CI cancels send: no node may outlive the launcher."""
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell's background job starts
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
+    """What timeout, systemd, docker stop, CI cancels and `kill -INT` send: no node may outlive
+    the launcher, even one started with SIGINT ignored (a shell's background job)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from mixed_support import graph_subset
     graph_file = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller', 'mot_planner'], use_sim_time=False)
     proc = subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', str(graph_file)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=_ignore_sigint)
     pids: list[int] = []
     lines: list[str] = []
     watchdog = threading.Timer(180, proc.kill)  # a launcher that never gets there fails, not hangs
@@ -179,7 +185,8 @@ def test_sigterm_or_sighup_to_the_launcher_stops_every_node(tmp_path, sig):
             proc.kill()
     text = ''.join(lines) + out
     assert proc.returncode == 0, text[-3000:]
-    assert f'stopping on {signal.Signals(sig).name}' in text, text[-3000:]
+    said = 'user interrupted with ctrl-c' if sig == signal.SIGINT else f'stopping on {signal.Signals(sig).name}'
+    assert said in text, text[-3000:]
     assert not [p for p in pids if _pid_running(p)], f'orphaned nodes {pids}:\n{text[-3000:]}'
 
 

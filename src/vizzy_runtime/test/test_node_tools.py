@@ -1,5 +1,6 @@
 """vizzy_runtime.node_tools on the bundled runtime: parameter tables, guarded callbacks, main."""
 
+import signal
 import threading
 import time
 from typing import Any
@@ -298,6 +299,9 @@ def test_main_for_runs_the_standard_main(monkeypatch):
             events.append('shutdown')
 
     monkeypatch.setattr(node_tools, 'rclpy', FakeRclpy())
+    # run() leaves SIGINT ignored (a node's process then exits); this test process goes on, and
+    # the processes later tests start would inherit SIG_IGN: restore the handlers afterwards
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     main = node_tools.main_for(FakeNode)
     main(['x'])
     assert events == [('init', ['x']), 'spin', 'destroy', 'shutdown']
@@ -307,9 +311,13 @@ def test_main_for_runs_the_standard_main(monkeypatch):
     def failing_factory() -> Any:
         raise ValueError('bad parameters')
 
-    with pytest.raises(ValueError):
-        node_tools.main_for(failing_factory)()
-    assert events == [('init', None), 'shutdown']
+    try:
+        with pytest.raises(ValueError):
+            node_tools.main_for(failing_factory)()
+        assert events == [('init', None), 'shutdown']
+    finally:
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
 
 
 def test_latest_worker_runs_the_newest_item_and_drops_the_rest() -> None:

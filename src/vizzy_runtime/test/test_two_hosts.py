@@ -75,13 +75,15 @@ def _in(host: str, args: list[str], lan: bool, **kw) -> subprocess.Popen:
 
 
 def _stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
+    """SIGINT, then SIGTERM (the launcher still stops its nodes), then SIGKILL."""
+    for sig, wait in ((signal.SIGINT, 60), (signal.SIGTERM, 30), (signal.SIGKILL, 30)):
+        if proc.poll() is not None:
+            return
+        proc.send_signal(sig)
         try:
-            proc.wait(60)
+            proc.wait(wait)
         except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(30)
+            continue
 
 
 def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):

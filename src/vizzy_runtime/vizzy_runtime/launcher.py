@@ -239,7 +239,9 @@ def _raise_stop(signum: int, _frame: Any) -> None:
 
 class stop_on_signals:
     """While active (main thread only), SIGTERM and SIGHUP raise LaunchStopped (a KeyboardInterrupt)
-    so the launcher's clean-up runs instead of the process ending with its nodes orphaned."""
+    so the launcher's clean-up runs instead of the process ending with its nodes orphaned; SIGINT
+    raises KeyboardInterrupt even where the launcher was started with it ignored (a shell's
+    background job, a parent that ignores it), or nothing could stop the graph with SIGINT."""
 
     SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -248,6 +250,7 @@ class stop_on_signals:
         if threading.current_thread() is threading.main_thread():
             for sig in self.SIGNALS:
                 self._previous[sig] = signal.signal(sig, _raise_stop)
+            self._previous[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
         return self
 
     def __exit__(self, *_exc: Any) -> None:
