@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -185,6 +186,17 @@ def evaluate(paths: Seq[str | Path], args: argparse.Namespace,
     return out
 
 
+def finite_or_none(value: Any) -> Any:
+    """value with every NaN or infinite float (at any depth) replaced by None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(v) for v in value]
+    return value
+
+
 def print_table(result: dict[str, Any]) -> None:
     cols = ('mota', 'motp', 'idf1', 'num_switches', 'detector_ms_after_bootstrap',
             'processed_fraction')
@@ -240,11 +252,18 @@ def main(argv: Seq[str] | None = None) -> int:
     except (MotFolderError, ValueError) as exc:
         print(f'evaluate: error: {exc}', file=sys.stderr)
         return 2
+    objects = [b['num_objects'] for b in result['overall'].values()
+               if isinstance(b, dict) and 'num_objects' in b]
+    if objects and not any(objects):
+        print('evaluate: error: the ground truth has no target objects to score (every row '
+              'ignored: conf 0 or a class that is not a pedestrian)', file=sys.stderr)
+        return 2
     if not args.quiet:
         print_table(result)
-    text = json.dumps(result, default=str)
+    result = finite_or_none(result)  # JSON has no -inf/NaN (MOTA is -inf with no objects)
+    text = json.dumps(result, default=str, allow_nan=False)
     if args.output is not None:
-        args.output.write_text(json.dumps(result, indent=2, default=str) + '\n')
+        args.output.write_text(json.dumps(result, indent=2, default=str, allow_nan=False) + '\n')
     print(text, flush=True)
     return 0
 

@@ -171,3 +171,28 @@ def test_missing_parts_and_cli_errors(tmp_path: Path, capsys) -> None:
     with pytest.raises(MotFolderError, match='numbered 1, 2'):
         load_sequence(no_info)
     assert evaluate.main([str(seq.parent / 'SEQ-01'), '--quiet', '--s-max', '2']) == 2
+
+
+def test_mot15_rows_keep_every_box(tmp_path: Path) -> None:
+    """MOT15's gt.txt puts world coordinates (or -1) where MOT16/17 have class and visibility:
+    ten values per row. Read as class/visibility they would drop every box."""
+    rows = []
+    for f in (1, 2):
+        rows.append(f'{f},1,{O1[0]},{O1[1]},{O1[2]},{O1[3]},1,12.5,3.25,0')
+        rows.append(f'{f},2,{O2[0]},{O2[1]},{O2[2]},{O2[3]},1,-1,-1,-1')
+    seq = load_sequence(make_sequence(tmp_path, rows, n_frames=2))
+    gt = seq.gt
+    assert list(gt.classes) == [-1] * 4 and list(gt.visibility) == [1.0] * 4
+    args = evaluate.parser().parse_args([str(tmp_path), '--quiet', '--mode', 'full'])
+    result = evaluate.evaluate(args.paths, args, detector=StaticOracle())
+    assert result['overall']['full_frame']['num_objects'] == 4
+    assert result['overall']['full_frame']['mota'] == pytest.approx(1.0)
+
+
+def test_no_target_objects_is_an_error_and_the_json_is_valid(tmp_path: Path, capsys) -> None:
+    rows = [f'{f},1,{O1[0]},{O1[1]},{O1[2]},{O1[3]},0,1,1.0' for f in (1, 2)]  # conf 0: ignored
+    make_sequence(tmp_path, rows, n_frames=2)
+    assert evaluate.main([str(tmp_path / 'SEQ-01'), '--quiet', '--mode', 'full']) == 2
+    assert 'no target objects' in capsys.readouterr().err
+    assert evaluate.finite_or_none({'a': [float('-inf'), 1.5, float('nan')], 'b': 'x'}) == \
+        {'a': [None, 1.5, None], 'b': 'x'}

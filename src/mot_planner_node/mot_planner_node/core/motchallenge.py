@@ -1,7 +1,9 @@
 """MOTChallenge sequence folders: ``img1/`` frames, ``gt/gt.txt``, optional ``seqinfo.ini``.
 
-Ground-truth rows are ``frame, id, x, y, w, h[, conf[, class[, visibility]]]`` (MOT17 has all
-nine; older sets put -1 in the unused columns). What is evaluated follows the MOTChallenge
+Ground-truth rows are ``frame, id, x, y, w, h[, conf[, class[, visibility]]]`` (MOT16/17 have all
+nine; older sets put -1 in the unused columns). A file whose rows have ten values is MOT15's
+layout, ``frame, id, x, y, w, h, conf, X, Y, Z`` (world coordinates, or -1): it has no class or
+visibility, so its rows are read as class -1 (a target) with visibility 1. What is evaluated follows the MOTChallenge
 devkit: rows with conf 0 are ignored; with a class column, class 1 (pedestrian) and -1 (no
 class) are targets, classes 2, 7, 8, 12 (person on vehicle, static person, distractor,
 reflection) are distractors (a hypothesis that matches one is not counted, see
@@ -23,6 +25,7 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 TARGET_CLASSES = (1, -1)
+MOT15_WIDTH = 10  # values per gt.txt row in MOT15 (2D MOT 2015): conf, then world x, y, z
 DISTRACTOR_CLASSES = (2, 7, 8, 12)
 IMAGE_EXTENSIONS = ('.jpg', '.jpeg', '.png', '.bmp')
 
@@ -82,7 +85,10 @@ def read_gt(path: Path, n_frames: int | None = None) -> GroundTruth:
         raise MotFolderError(f'{path}: cannot read ({exc})') from None
     rows: list[list[float]] = []
     seen: set[tuple[int, int]] = set()
-    for lineno, line in enumerate(text.splitlines(), 1):
+    lines = [ln.strip() for ln in text.splitlines()]
+    widths = {len([f for f in ln.replace(' ', ',').split(',') if f.strip()]) for ln in lines if ln}
+    mot15 = MOT15_WIDTH in widths  # columns 8-10 are world coordinates, not class/visibility
+    for lineno, line in enumerate(lines, 1):
         line = line.strip()
         if not line:
             continue
@@ -112,6 +118,8 @@ def read_gt(path: Path, n_frames: int | None = None) -> GroundTruth:
         if key in seen:
             raise MotFolderError(f'{where}: id {int(tid)} appears twice in frame {int(frame)}')
         seen.add(key)
+        if mot15:
+            vals = vals[:7] + [-1.0, 1.0]
         vals += [1.0, -1.0, 1.0][len(vals) - 6:]            # conf, class, visibility defaults
         rows.append(vals[:9])
     a = np.array(rows, dtype=float).reshape(-1, 9)
