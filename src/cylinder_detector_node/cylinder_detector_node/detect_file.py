@@ -50,6 +50,16 @@ def pcd_size(path: Path) -> tuple[int, int] | None:
         return None
 
 
+def _declares_no_points(path: Path) -> bool:
+    """True for a .pcd whose header says POINTS 0 or a .ply whose says element vertex 0."""
+    with open(path, 'rb') as f:
+        head = f.read(4096).decode('ascii', 'replace').splitlines()
+    if path.suffix.lower() == '.pcd':
+        return any(line.split()[:2] == ['POINTS', '0'] for line in head if line.strip())
+    return bool(head) and head[0].strip() == 'ply' and any(
+        line.split()[:3] == ['element', 'vertex', '0'] for line in head)
+
+
 def load_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """(points, image): points (H, W, 3) for an organized .pcd (WIDTH x HEIGHT = POINTS, HEIGHT > 1),
     else (N, 3); image (H, W, 3) uint8 RGB from an organized cloud's colours, else None.
@@ -62,6 +72,9 @@ def load_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)   # keep stdout pure JSON
     pcd = o3d.io.read_point_cloud(str(path), remove_nan_points=False, remove_infinite_points=False)
     pts = np.asarray(pcd.points, dtype=np.float64)
+    if len(pts) == 0 and not _declares_no_points(path):
+        raise ValueError(f'{path}: not a readable {path.suffix.lower()[1:].upper()} point cloud '
+                         '(Open3D read no points from it)')
     size = pcd_size(path)
     if size is None or size[1] <= 1 or size[0] * size[1] != len(pts):
         return pts, None

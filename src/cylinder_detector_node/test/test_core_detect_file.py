@@ -41,6 +41,10 @@ def test_bad_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     txt.write_text('1 2 3\n')
     assert detect_file.main([str(txt)]) == 2
     assert '.pcd or .ply' in capsys.readouterr().err
+    renamed = tmp_path / 'renamed.pcd'   # a text file with the right suffix: not an empty cloud
+    renamed.write_text('hello world\n')
+    assert detect_file.main([str(renamed)]) == 2
+    assert 'not a readable PCD point cloud' in capsys.readouterr().err
     header = 'ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n'
     empty = tmp_path / 'empty.ply'
     empty.write_text(header.format(0))
