@@ -66,7 +66,9 @@ from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifie
 from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylinder, FitParams
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import SegmentParams
-from vizzy_runtime.convert import image_to_numpy, pointcloud2_dtype, pointcloud2_to_array
+from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
+    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING, image_refusal, image_to_numpy, pointcloud2_dtype, pointcloud2_to_array)
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread, replace_timer)
@@ -89,15 +91,9 @@ MARKERS_TOPIC = 'cylinders/markers'
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 NO_XYZ = 'no xyz fields'
 BAD_FIELDS = 'bad field layout'
-SHORT_DATA = 'size inconsistent with data'
 EMPTY_CLOUD = 'empty cloud'
 TOO_FEW_POINTS = 'too few finite points'
 CLOUD_REASONS = (NO_XYZ, BAD_FIELDS, SHORT_DATA, EMPTY_CLOUD, TOO_FEW_POINTS)
-UNSUPPORTED_ENCODING = 'unsupported encoding'
-EMPTY_IMAGE = 'empty image'
-SHORT_STEP = 'step shorter than a row'
-UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
-IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
 COLOUR_CHANNELS = {'rgb8': 3, 'bgr8': 3, 'rgba8': 4, 'bgra8': 4}
 WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
 REPORT_PERIOD_S = 10.0
@@ -220,27 +216,10 @@ def cloud_xyz(msg: Any, min_points: int) -> np.ndarray:
     return xyz
 
 
-def image_refusal(msg: Any) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image is no usable colour image, or None if it is:
-    reason is one of IMAGE_REASONS (a counter key), detail names the values."""
-    channels = COLOUR_CHANNELS.get(msg.encoding)
-    if channels is None:
-        return UNSUPPORTED_ENCODING, (f'{msg.encoding!r} is not a colour one '
-                                      f'({", ".join(COLOUR_CHANNELS)})')
-    if msg.width == 0 or msg.height == 0:
-        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
-    row = channels * msg.width
-    if msg.step < row:
-        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
-    size = len(msg.data)
-    if size < msg.step * msg.height:
-        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
-                            f'{msg.step * msg.height} expected')
-    try:
-        rgb_image(msg)
-    except ValueError as exc:                # ConversionError is a ValueError
-        return UNCONVERTIBLE, str(exc)
-    return None
+def colour_image_refusal(msg: Any) -> tuple[str, str] | None:
+    """(reason, detail) of why an input image is no usable colour image, or None if it is
+    (reason: one of IMAGE_REASONS, a counter key)."""
+    return image_refusal(msg, COLOUR_CHANNELS, convert=rgb_image)
 
 
 def quaternion_z_to(axis: np.ndarray) -> tuple[float, float, float, float]:
@@ -378,7 +357,7 @@ class CylinderDetectorNode(Node):
             self.frames_dropped += 1        # the worker is still busy: keep only the newest
 
     def _on_image(self, msg: Any) -> None:
-        problem = image_refusal(msg)
+        problem = colour_image_refusal(msg)
         if problem:
             self.input_health.refuse(self._image_topic, *problem)
             return

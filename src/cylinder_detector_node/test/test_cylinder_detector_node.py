@@ -91,17 +91,17 @@ def test_images_are_read_as_rgb() -> None:
     with pytest.raises(ValueError, match='not a colour one'):
         node.rgb_image(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'))
     # the checks on arrival: (reason, detail) or None
-    assert node.image_refusal(numpy_to_image(rgb, 'rgb8')) is None
-    assert node.image_refusal(numpy_to_image(np.zeros((4, 5, 4), np.uint8), 'bgra8')) is None
-    reason, detail = node.image_refusal(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'))
+    assert node.colour_image_refusal(numpy_to_image(rgb, 'rgb8')) is None
+    assert node.colour_image_refusal(numpy_to_image(np.zeros((4, 5, 4), np.uint8), 'bgra8')) is None
+    reason, detail = node.colour_image_refusal(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'))
     assert reason == node.UNSUPPORTED_ENCODING and "'mono8'" in detail
     tall = numpy_to_image(rgb, 'rgb8')
     tall.height = 8                                      # more rows than the data holds
-    assert node.image_refusal(tall)[0] == node.SHORT_DATA
+    assert node.colour_image_refusal(tall)[0] == node.SHORT_DATA
     tall.height, tall.step = 4, 10                       # a row is 15 bytes
-    assert node.image_refusal(tall)[0] == node.SHORT_STEP
+    assert node.colour_image_refusal(tall)[0] == node.SHORT_STEP
     tall.width = 0
-    assert node.image_refusal(tall)[0] == node.EMPTY_IMAGE
+    assert node.colour_image_refusal(tall)[0] == node.EMPTY_IMAGE
     stamp = node.CylinderArray().header.stamp
     stamp.sec, stamp.nanosec = 3, 500_000_000
     assert node.stamp_s(stamp) == 3.5

@@ -313,7 +313,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     def boom(*_: Any, **__: Any) -> None:
         raise RuntimeError('on fire')
 
-    monkeypatch.setattr(cyl_node, 'image_refusal', boom)
+    monkeypatch.setattr(cyl_node, 'colour_image_refusal', boom)
     send_image(_image_msg(grey, 66), 'failed on an image: RuntimeError')
     monkeypatch.setattr(cyl_node, 'detect_cylinders', boom)
     received = detector.clouds_received

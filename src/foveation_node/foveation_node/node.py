@@ -78,7 +78,9 @@ from foveation_node.core.image_checks import check_fixation
 from foveation_node.core.recognition import (
     DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
     back_project, saccade_target, two_pass)
-from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
+from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
+    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING, ConversionError, image_refusal, image_to_numpy, numpy_to_image)
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread)
@@ -107,14 +109,6 @@ DEFAULT_MODEL = 'package://foveation_node/models/foveation_cnn.pt'
 DEFAULT_LABELS = 'package://foveation_node/models/foveation_cnn.labels'
 ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
-UNSUPPORTED_ENCODING = 'unsupported encoding'
-EMPTY_IMAGE = 'empty image'
-TOO_LARGE = 'too large'
-SHORT_STEP = 'step shorter than a row'
-SHORT_DATA = 'size inconsistent with data'
-UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
-IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, TOO_LARGE, SHORT_STEP, SHORT_DATA,
-                 UNCONVERTIBLE)
 FIXATION_OUTSIDE = 'fixation outside image'
 TOO_SMALL_FOR_LEVELS = 'too small for levels'
 UNUSABLE_K = 'unusable K'
@@ -213,27 +207,9 @@ def check_parameter(name: str, value: Any) -> str | None:
 
 
 def image_problem(msg: Any, max_width: int, max_height: int) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image cannot be used, or None if it can: reason is one
-    of IMAGE_REASONS (a counter key), detail names the values."""
-    if msg.encoding not in ENCODINGS:
-        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
-    if msg.width == 0 or msg.height == 0:
-        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
-    if msg.width > max_width or msg.height > max_height:
-        return TOO_LARGE, (f'{msg.width}x{msg.height} exceeds max_width x max_height '
-                           f'{max_width}x{max_height}')
-    row = 3 * msg.width                               # rgb8 and bgr8: 3 bytes a pixel
-    if msg.step < row:
-        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
-    size = len(msg.data)
-    if size < msg.step * msg.height:
-        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
-                            f'{msg.step * msg.height} expected')
-    try:
-        image_to_numpy(msg)
-    except ConversionError as exc:
-        return UNCONVERTIBLE, str(exc)
-    return None
+    """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
+    IMAGE_REASONS, a counter key)."""
+    return image_refusal(msg, dict.fromkeys(ENCODINGS, 3), max_size=(max_width, max_height))
 
 
 def _k_text(k: Any) -> str:

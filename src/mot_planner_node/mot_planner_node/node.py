@@ -85,7 +85,9 @@ from mot_planner_node.core.kalman import predict
 from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.regions import constraint_areas
 from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
-from vizzy_runtime.convert import ConversionError, image_to_numpy, numpy_to_image
+from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
+    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING, ConversionError, image_refusal, image_to_numpy, numpy_to_image)
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
@@ -112,12 +114,6 @@ GAZE_COMMAND_TOPIC = 'gaze/command'
 SOURCE = 'mot_planner'
 ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
-UNSUPPORTED_ENCODING = 'unsupported encoding'
-EMPTY_IMAGE = 'empty image'
-SHORT_STEP = 'step shorter than a row'
-SHORT_DATA = 'size inconsistent with data'
-UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
-IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
 UNUSABLE_FRAME = 'unusable frame'
 UNUSABLE_K = 'unusable K'
 NOMINAL_FPS = 30.0
@@ -198,24 +194,9 @@ def check_parameter(name: str, value: Any) -> str | None:
 
 
 def image_problem(msg: Any) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image cannot be used, or None if it can: reason is one
-    of IMAGE_REASONS (a counter key), detail names the values."""
-    if msg.encoding not in ENCODINGS:
-        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
-    if msg.width == 0 or msg.height == 0:
-        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
-    row = 3 * msg.width                               # rgb8 and bgr8: 3 bytes a pixel
-    if msg.step < row:
-        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
-    size = len(msg.data)
-    if size < msg.step * msg.height:
-        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
-                            f'{msg.step * msg.height} expected')
-    try:
-        image_to_numpy(msg)
-    except ConversionError as exc:
-        return UNCONVERTIBLE, str(exc)
-    return None
+    """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
+    IMAGE_REASONS, a counter key)."""
+    return image_refusal(msg, dict.fromkeys(ENCODINGS, 3))
 
 
 def _k_text(k: Any) -> str:

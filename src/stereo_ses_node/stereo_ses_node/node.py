@@ -81,7 +81,9 @@ from stereo_ses_node.core.information import information, information_from_preci
 from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
 from stereo_ses_node.core.stereo import StereoFrame, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
-from vizzy_runtime.convert import ConversionError, array_to_pointcloud2, image_to_numpy
+from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
+    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING, ConversionError, array_to_pointcloud2, image_refusal, image_to_numpy)
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread, replace_timer)
@@ -110,12 +112,6 @@ STEREO_QOS = QoSProfile(depth=5)
 SOURCE = 'stereo_ses'
 ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
-UNSUPPORTED_ENCODING = 'unsupported encoding'
-EMPTY_IMAGE = 'empty image'
-SHORT_STEP = 'step shorter than a row'
-SHORT_DATA = 'size inconsistent with data'
-UNCONVERTIBLE = 'unconvertible image'      # any other ConversionError (none known)
-IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
 NO_PARTNER = 'no partner image'
 # a pair the worker could not fuse: counted on both image topics
 SIZES_DIFFER = 'left and right sizes differ'
@@ -253,24 +249,9 @@ def user_gmm(values: dict[str, Any]) -> GMM:
 
 
 def image_problem(msg: Any) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image cannot be used, or None if it can: reason is one
-    of IMAGE_REASONS (a counter key), detail names the values."""
-    if msg.encoding not in ENCODINGS:
-        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(ENCODINGS)}'
-    if msg.width == 0 or msg.height == 0:
-        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
-    row = 3 * msg.width                               # rgb8 and bgr8: 3 bytes a pixel
-    if msg.step < row:
-        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
-    size = len(msg.data)
-    if size < msg.step * msg.height:
-        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
-                            f'{msg.step * msg.height} expected')
-    try:
-        image_to_numpy(msg)
-    except ConversionError as exc:
-        return UNCONVERTIBLE, str(exc)
-    return None
+    """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
+    IMAGE_REASONS, a counter key)."""
+    return image_refusal(msg, dict.fromkeys(ENCODINGS, 3))
 
 
 def intrinsics(msg: Any) -> np.ndarray | None:

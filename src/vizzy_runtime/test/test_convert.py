@@ -56,3 +56,26 @@ def test_pointcloud_too_short_is_an_error():
     msg.data = msg.data[:20]
     with pytest.raises(ConversionError, match='too few'):
         pointcloud2_to_array(msg)
+
+
+def test_image_refusal_names_the_reason_and_the_values():
+    from vizzy_runtime.convert import (EMPTY_IMAGE, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
+                                       UNSUPPORTED_ENCODING, image_refusal, numpy_to_image)
+    rgb = {'rgb8': 3, 'bgr8': 3}
+    ok = numpy_to_image(np.zeros((4, 5, 3), np.uint8), 'rgb8')
+    assert image_refusal(ok, rgb) is None
+    assert image_refusal(numpy_to_image(np.zeros((4, 5), np.uint8), 'mono8'), rgb) == (
+        UNSUPPORTED_ENCODING, "'mono8' is not one of rgb8, bgr8")
+    assert image_refusal(ok, rgb, max_size=(4, 100))[0] == TOO_LARGE
+    ok.step = 14
+    assert image_refusal(ok, rgb) == (SHORT_STEP, 'step 14 < 15 bytes for 5 px of rgb8')
+    ok.step, ok.height = 15, 5
+    assert image_refusal(ok, rgb) == (SHORT_DATA, '60 data bytes, height 5 x step 15 = 75 expected')
+    ok.height = 0
+    assert image_refusal(ok, rgb) == (EMPTY_IMAGE, '5x0')
+    ok.height = 4
+
+    def refuse(msg):
+        raise ValueError('no such layout')
+
+    assert image_refusal(ok, rgb, convert=refuse) == (UNCONVERTIBLE, 'no such layout')

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import array
 import sys
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -62,6 +62,46 @@ def image_to_numpy(msg: Any) -> np.ndarray:
     arr = np.ascontiguousarray(rows).view(dtype) if msg.step != row else rows.view(dtype)
     shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
     return arr.reshape(shape)
+
+
+# Why an input image is refused: short, stable reasons (InputHealth counter keys).
+UNSUPPORTED_ENCODING = 'unsupported encoding'
+EMPTY_IMAGE = 'empty image'
+TOO_LARGE = 'too large'
+SHORT_STEP = 'step shorter than a row'
+SHORT_DATA = 'size inconsistent with data'
+UNCONVERTIBLE = 'unconvertible image'
+IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, TOO_LARGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
+
+
+def image_refusal(msg: Any, bytes_per_pixel: dict[str, int], *,
+                  max_size: tuple[int, int] | None = None,
+                  convert: Callable[[Any], Any] = image_to_numpy) -> tuple[str, str] | None:
+    """(reason, detail) of why a sensor_msgs/Image cannot be used, or None if it can.
+
+    bytes_per_pixel: the encodings accepted and their pixel sizes; max_size: the largest
+    (width, height) accepted; convert: the conversion the caller will make (its ValueError, e.g.
+    ConversionError, is UNCONVERTIBLE). reason is one of IMAGE_REASONS, detail names the values."""
+    pixel = bytes_per_pixel.get(msg.encoding)
+    if pixel is None:
+        return UNSUPPORTED_ENCODING, f'{msg.encoding!r} is not one of {", ".join(bytes_per_pixel)}'
+    if msg.width == 0 or msg.height == 0:
+        return EMPTY_IMAGE, f'{msg.width}x{msg.height}'
+    if max_size is not None and (msg.width > max_size[0] or msg.height > max_size[1]):
+        return TOO_LARGE, (f'{msg.width}x{msg.height} exceeds max_width x max_height '
+                           f'{max_size[0]}x{max_size[1]}')
+    row = pixel * msg.width
+    if msg.step < row:
+        return SHORT_STEP, f'step {msg.step} < {row} bytes for {msg.width} px of {msg.encoding}'
+    size = len(msg.data)
+    if size < msg.step * msg.height:
+        return SHORT_DATA, (f'{size} data bytes, height {msg.height} x step {msg.step} = '
+                            f'{msg.step * msg.height} expected')
+    try:
+        convert(msg)
+    except ValueError as exc:
+        return UNCONVERTIBLE, str(exc)
+    return None
 
 
 def numpy_to_image(arr: np.ndarray, encoding: str, header: Any = None) -> Any:
