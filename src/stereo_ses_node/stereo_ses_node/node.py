@@ -79,7 +79,7 @@ from stereo_ses_node.core.decision import (
     ACQUISITIONS, choose_fixation, reachable_cells, reward_statistics)
 from stereo_ses_node.core.information import information, information_from_precision
 from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
-from stereo_ses_node.core.stereo import StereoFrame, StereoPipeline
+from stereo_ses_node.core.stereo import SGBMParams, StereoFrame, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
 from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
     EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
@@ -146,6 +146,13 @@ PARAMETERS: tuple[Param, ...] = (
           "Retina: 'cartesian' (uniform grid) or 'logpolar' (section 3.3.2).", choices=SENSORS),
     Param('n_rf', 200, 'Receptive fields per side: an n_rf x n_rf grid (cartesian) or n_rf '
           'rings x n_rf wedges (logpolar); thesis 200. In [16, 512].', '[16, 512]'),
+    Param('min_disparity', SGBMParams.min_disparity,
+          'Smallest disparity searched [px] (SGBM minDisparity), in [-1024, 1024]. Verging eyes '
+          'see points beyond the fixation at negative disparity; a parallel rectified rig needs '
+          '>= 0.', '[-1024, 1024]'),
+    Param('num_disparities', SGBMParams.num_disparities,
+          'Disparities searched from min_disparity (SGBM numDisparities), a multiple of 16 in '
+          '[16, 1024].', '[16, 1024]', step=16),
     Param('n_cells', 20000, 'Ego-sphere cells N_x, in [100, 200000]; a change resets the '
           'memory.', '[100, 200000]'),
     Param('bias', 'unbiased', "Ego-sphere cell distribution (Table 3.1): 'unbiased', 'top', "
@@ -198,7 +205,8 @@ PARAMETERS: tuple[Param, ...] = (
           f'{CELLS_TOPIC} (at their prior mean, 10 m away).'),
 )
 # parameters whose change rebuilds the stereo pipeline / the ego-sphere
-PIPELINE_PARAMETERS = ('sensor', 'n_rf', 'ut_alpha', 'ut_beta', 'ut_kappa')
+PIPELINE_PARAMETERS = ('sensor', 'n_rf', 'min_disparity', 'num_disparities', 'ut_alpha', 'ut_beta',
+                       'ut_kappa')
 SES_PARAMETERS = ('n_cells', 'bias', 'bias_weights', 'bias_means', 'bias_variances', 'seed')
 _LISTS = ('bias_weights', 'bias_means', 'bias_variances', 'fixation_distance_m',
           'elevation_limits_deg')
@@ -561,6 +569,8 @@ class StereoSesNode(Node):
             p = self._p
             n = int(p['n_rf'])
             pipe = StereoPipeline(width, height, p['sensor'], (n, n),
+                                  sgbm=SGBMParams(num_disparities=int(p['num_disparities']),
+                                                  min_disparity=int(p['min_disparity'])),
                                   ut=UTParams(float(p['ut_alpha']), float(p['ut_beta']),
                                               float(p['ut_kappa'])))
             self._pipeline = pipe

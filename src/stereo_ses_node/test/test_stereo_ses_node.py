@@ -28,6 +28,10 @@ def test_parameter_checks() -> None:
         assert refused('sensor', 'fisheye') and refused('acquisition', 'thompson')
         assert refused('bias', 'user') is None and refused('bias', 'sideways')
         assert refused('n_rf', 200.5) and refused('n_rf', 8)
+        # the SGBM search range: a rectified parallel rig needs [0, 64) and more, not [-40, 40)
+        assert refused('min_disparity', 0) is None and refused('num_disparities', 128) is None
+        assert refused('num_disparities', 20) and refused('num_disparities', 0)
+        assert refused('min_disparity', 2000)
         assert refused('bias_means', [0.0, 1.0]) and refused('bias_variances', [0.5, 0.5, 0.0])
         assert refused('fixation_distance_m', [0.1, 5.0])
         assert refused('fixation_distance_m', [2.0, 1.0])
