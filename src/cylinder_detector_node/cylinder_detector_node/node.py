@@ -33,12 +33,8 @@ CylinderArray; a valid cloud without a table or with nothing on it is accepted, 
 CylinderArray and a throttled warning. While no cloud arrives, an empty CylinderArray goes out
 every heartbeat_period_s in frame_id.
 
-Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
-(self.input_health): the first refusal of each (topic, reason) is logged in one line naming node,
-topic and reason, later ones at most every 5 s with the count so far, and /diagnostics carries the
-node's status (WARN while inputs are being refused) with `<topic>: <reason>` = count and
-`<topic>: accepted` = count entries. The reasons (short, stable counter keys; the values are in
-the logged detail):
+Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health;
+logging and /diagnostics as its docstring says). The reasons (counter keys):
   on /vizzy/rgbd/points (CLOUD_REASONS, checked on the worker thread): 'no xyz fields', 'bad
     field layout' (an unknown PointField datatype, fields outside point_step), 'size
     inconsistent with data' (fewer data bytes than the points need), 'empty cloud' (no points),

@@ -18,7 +18,7 @@ from cylinder_detector_node.core.scene import make_tabletop
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_system_default
-from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.testing import publish_until, reported_status, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -292,11 +292,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     name = detector.get_fully_qualified_name()
 
     def reported() -> dict[str, str]:
-        for array in reversed(reports):
-            for status in array.status:
-                if status.name == name:
-                    return {kv.key: kv.value for kv in status.values}
-        return {}
+        return reported_status(reports, name)
 
     want = {**{f'{topic}: {reason}': '1' for topic, reason in expected},
             f'{cloud_topic}: accepted': '1', f'{image_topic}: accepted': '1'}

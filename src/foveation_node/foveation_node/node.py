@@ -22,23 +22,16 @@ i.e. the default is already right for a head that fixates.
 While /gaze/state says in_saccade, frames are dropped (saccadic suppression) if
 suppress_during_saccades (counted in frames_suppressed, not as refusals).
 
-Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
-(self.input_health): the first refusal of each (topic, reason) is logged in one line naming
-node, topic and reason, later ones at most every 5 s with the count so far, and the node
-publishes its status about once a second on
-
-  /diagnostics                 diagnostic_msgs/DiagnosticArray: WARN while inputs are being
-                               refused, with `<topic>: <reason>` = count and
-                               `<topic>: accepted` = count entries
-
-The reasons (IMAGE_REASONS, FIXATION_OUTSIDE, TOO_SMALL_FOR_LEVELS, UNUSABLE_K): on
-/vizzy/left/image_raw 'unsupported encoding' (not rgb8/bgr8), 'empty image' (zero width or
-height), 'too large' (beyond max_width x max_height), 'step shorter than a row', 'size
-inconsistent with data' (fewer data bytes than height x step), 'fixation outside image',
-'too small for levels' (min(width, height) < 2^levels); on /vizzy/left/camera_info 'unusable
-K' (not 9 finite values with fx, fy > 0; the last good one stays in use); and, for an
-exception escaping a callback (node_tools.guarded), 'failed on an image: <ExcType>' (or a
-camera_info, a state). The refused frame is skipped and the node keeps running.
+Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health; logging
+and /diagnostics as its docstring says). The reasons (IMAGE_REASONS, FIXATION_OUTSIDE,
+TOO_SMALL_FOR_LEVELS, UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encoding' (not
+rgb8/bgr8), 'empty image' (zero width or height), 'too large' (beyond max_width x max_height),
+'step shorter than a row', 'size inconsistent with data' (fewer data bytes than height x step),
+'fixation outside image', 'too small for levels' (min(width, height) < 2^levels); on
+/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy > 0; the last good one
+stays in use); and, for an exception escaping a callback (node_tools.guarded), 'failed on an
+image: <ExcType>' (or a camera_info, a state). The refused frame is skipped and the node keeps
+running.
 
 Recognition (section 2.3.2, Fig. 2.5; core.recognition): at most recognition_rate_hz, the
 newest frame goes to a worker thread (at most one recognition in flight; a frame arriving while

@@ -8,7 +8,7 @@ asserts on wall-clock time: the tests wait for conditions.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,7 +18,8 @@ from vizzy_runtime.convert import numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import (
     Context, Node, Parameter, message, qos_profile_sensor_data, qos_profile_system_default)
-from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.testing import (publish_until, refused_once, reported_status, spinning,
+                                   wait_until)
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -28,7 +29,6 @@ DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 DiagnosticStatus = message('diagnostic_msgs/msg/DiagnosticStatus')
 
 TIMEOUT = 20.0
-RESEND_S = 2.0          # a best-effort sample not counted by then is taken as lost: sent again
 WIDTH, HEIGHT = 161, 121
 
 
@@ -83,15 +83,6 @@ def _camera_info(k: list[float]) -> Any:
     return info
 
 
-def _refused_once(node: Any, executor: Any, publish: Callable[[], Any],
-                  key: tuple[str, str]) -> bool:
-    """Publish until the refusal key's count rose by one (a resend only after RESEND_S without
-    it: sensor data QoS is best effort)."""
-    before = node.input_health.refused().get(key, 0)
-    return publish_until(publish, lambda: node.input_health.refused().get(key, 0) > before,
-                         executor, TIMEOUT, period=RESEND_S)
-
-
 def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
     camera, foveation, executor = graph
     health = foveation.input_health
@@ -118,11 +109,11 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         ('too small for levels', _small()),                  # 5 levels need 32 px a side
     ]
     for reason, msg in bad_images:
-        assert _refused_once(foveation, executor, lambda: camera.image_pub.publish(msg),
+        assert refused_once(foveation, executor, lambda: camera.image_pub.publish(msg),
                              (image_topic, reason)), reason
     # a fixation outside the image
     assert foveation.set_parameters([Parameter('fixation_u', value=1000.0)])[0].successful
-    assert _refused_once(foveation, executor, lambda: camera.image_pub.publish(good),
+    assert refused_once(foveation, executor, lambda: camera.image_pub.publish(good),
                          (image_topic, 'fixation outside image'))
     assert foveation.set_parameters([Parameter('fixation_u', value=-1.0)])[0].successful
     # an exception inside the callback is counted too (node_tools.guarded), and swallowed
@@ -130,11 +121,11 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         raise RuntimeError('foveator on fire')
 
     foveation._get_foveator = broken
-    assert _refused_once(foveation, executor, lambda: camera.image_pub.publish(good),
+    assert refused_once(foveation, executor, lambda: camera.image_pub.publish(good),
                          (image_topic, 'failed on an image: RuntimeError'))
     del foveation._get_foveator                          # the class's again
     # a camera_info without a usable K: refused, the last good one stays
-    assert _refused_once(foveation, executor,
+    assert refused_once(foveation, executor,
                          lambda: camera.info_pub.publish(_camera_info([0.0] * 9)),
                          (info_topic, 'unusable K'))
     assert foveation._camera_k == tuple(k)
@@ -157,17 +148,10 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
                          executor, TIMEOUT)
 
     # /diagnostics: the node's status carries the counts
-    def reported() -> dict[str, str] | None:
-        for array in reversed(camera.reports):
-            for status in array.status:
-                values = {kv.key: kv.value for kv in status.values}
-                if (status.name == foveation.get_fully_qualified_name()
-                        and values.get(f'{info_topic}: unusable K') == '1'):
-                    return values
-        return None
-
-    assert wait_until(lambda: reported() is not None, TIMEOUT, spin=executor)
-    values = reported()
+    name = foveation.get_fully_qualified_name()
+    assert wait_until(lambda: reported_status(camera.reports, name).get(f'{info_topic}: unusable K')
+                      == '1', TIMEOUT, spin=executor)
+    values = reported_status(camera.reports, name)
     assert values[f'{image_topic}: unsupported encoding'] == '2'
     assert int(values[f'{image_topic}: accepted']) >= 1
 

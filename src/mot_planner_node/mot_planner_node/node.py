@@ -49,19 +49,16 @@ Track velocities are converted from px/frame to px/s with the frame period measu
 image stamps (NOMINAL_FPS until two stamped frames arrived). A frame size change resets the
 tracker with a warning and bootstraps on the new size.
 
-Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
-(self.input_health): the first refusal of each (topic, reason) is logged in one line naming
-node, topic and reason, later ones at most every 5 s with the count so far, and /diagnostics
-carries the node's status (WARN while inputs are being refused) with `<topic>: <reason>` =
-count and `<topic>: accepted` = count entries. The reasons (IMAGE_REASONS, UNUSABLE_FRAME,
-UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encoding' (not rgb8/bgr8), 'empty image'
-(zero width or height), 'step shorter than a row', 'size inconsistent with data' (fewer data
-bytes than height x step), 'unusable frame' (the tracker's FrameError); on
+Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health; logging
+and /diagnostics as its docstring says). The reasons (counter keys; IMAGE_REASONS,
+UNUSABLE_FRAME, UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encoding' (not rgb8/bgr8),
+'empty image' (zero width or height), 'step shorter than a row', 'size inconsistent with data'
+(fewer data bytes than height x step), 'unusable frame' (the tracker's FrameError); on
 /vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy > 0; the last good one
 stays in use); and, for an exception escaping a callback (node_tools.guarded), 'failed on an
-image: <ExcType>' (or a camera_info, a state). A refused image is dropped (frames_dropped),
-the tracks untouched. Changing k_max, s_max, alpha_c, alpha_s or
-budget_ms keeps the tracks; changing a detector setting restarts the tracker.
+image: <ExcType>' (or a camera_info, a state). A refused image is dropped (frames_dropped), the
+tracks untouched. Changing k_max, s_max, alpha_c, alpha_s or budget_ms keeps the tracks;
+changing a detector setting restarts the tracker.
 
 The detector comes from the module-level DETECTOR_FACTORY(params) (HOG from the detector
 parameters); tests replace it with a stub that needs no real people.

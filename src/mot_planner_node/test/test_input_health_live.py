@@ -10,7 +10,7 @@ time: the tests wait for conditions.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,7 +21,8 @@ from mot_planner_node.core.observation import DetectorGeometry
 from vizzy_runtime.convert import numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import Context, Node, message, qos_profile_system_default
-from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.testing import (publish_until, refused_once, reported_status, spinning,
+                                   wait_until)
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -31,7 +32,6 @@ TrackArray = message('active_vision_msgs/msg/TrackArray')
 DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 
 TIMEOUT = 20.0
-RESEND_S = 2.0          # a best-effort sample not counted by then is taken as lost: sent again
 WIDTH, HEIGHT = 160, 120
 
 
@@ -94,15 +94,6 @@ def _camera_info(k: list[float]) -> Any:
     return info
 
 
-def _refused_once(node: Any, executor: Any, publish: Callable[[], Any],
-                  key: tuple[str, str]) -> bool:
-    """Publish until the refusal key's count rose by one (a resend only after RESEND_S without
-    it: sensor data QoS is best effort)."""
-    before = node.input_health.refused().get(key, 0)
-    return publish_until(publish, lambda: node.input_health.refused().get(key, 0) > before,
-                         executor, TIMEOUT, period=RESEND_S)
-
-
 def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
     camera, mot, executor = graph
     health = mot.input_health
@@ -129,18 +120,18 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         ('step shorter than a row', _small(step=10)),        # a row of 8 rgb8 px is 24 bytes
     ]
     for reason, msg in bad_images:
-        assert _refused_once(mot, executor, lambda: camera.image_pub.publish(msg),
+        assert refused_once(mot, executor, lambda: camera.image_pub.publish(msg),
                              (image_topic, reason)), reason
     # an exception inside the callback is counted too (node_tools.guarded), and swallowed
     def broken(*args: Any, **kwargs: Any) -> Any:
         raise RuntimeError('tracker on fire')
 
     mot._tracker.step = broken
-    assert _refused_once(mot, executor, lambda: camera.image_pub.publish(good),
+    assert refused_once(mot, executor, lambda: camera.image_pub.publish(good),
                          (image_topic, 'failed on an image: RuntimeError'))
     del mot._tracker.step                                # the class's again
     # a camera_info without a usable K: refused, the last good one stays
-    assert _refused_once(mot, executor, lambda: camera.info_pub.publish(_camera_info([0.0] * 9)),
+    assert refused_once(mot, executor, lambda: camera.info_pub.publish(_camera_info([0.0] * 9)),
                          (info_topic, 'unusable K'))
     assert mot._k == k
 
@@ -164,17 +155,10 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
     assert mot.frames_processed > processed
 
     # /diagnostics: the node's status carries the counts
-    def reported() -> dict[str, str] | None:
-        for array in reversed(camera.reports):
-            for status in array.status:
-                values = {kv.key: kv.value for kv in status.values}
-                if (status.name == mot.get_fully_qualified_name()
-                        and values.get(f'{info_topic}: unusable K') == '1'):
-                    return values
-        return None
-
-    assert wait_until(lambda: reported() is not None, TIMEOUT, spin=executor)
-    values = reported()
+    name = mot.get_fully_qualified_name()
+    assert wait_until(lambda: reported_status(camera.reports, name).get(f'{info_topic}: unusable K')
+                      == '1', TIMEOUT, spin=executor)
+    values = reported_status(camera.reports, name)
     assert values[f'{image_topic}: unsupported encoding'] == '2'
     assert int(values[f'{image_topic}: accepted']) >= 1
 

@@ -38,12 +38,8 @@ core on the development machine). Bad input is refused and the ego-sphere stays 
 (SensoryEgoSphere.fuse validates everything before it changes state; degenerate geometry and NaN
 disparities inside a frame are dropped point by point, StereoFrame.rejected).
 
-Refused inputs are counted per topic and reason by vizzy_runtime.input_health.InputHealth
-(self.input_health): the first refusal of each (topic, reason) is logged in one line naming node,
-topic and reason, later ones at most every 5 s with the count so far, and /diagnostics carries the
-node's status (WARN while inputs are being refused) with `<topic>: <reason>` = count and
-`<topic>: accepted` = count entries. The reasons (short, stable counter keys; the values are in
-the logged detail):
+Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health;
+logging and /diagnostics as its docstring says). The reasons (counter keys):
   on /vizzy/{left,right}/image_raw, one image at a time (IMAGE_REASONS): 'unsupported encoding'
     (not rgb8/bgr8), 'empty image', 'step shorter than a row', 'size inconsistent with data'
     (fewer data bytes than height x step); 'no partner image' (no image of the other eye came

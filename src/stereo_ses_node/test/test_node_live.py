@@ -21,7 +21,7 @@ from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import (
     Context, Node, Parameter, message, qos_profile_latched, qos_profile_system_default)
 from vizzy_runtime.tf import TF_STATIC_TOPIC
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import reported_status, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -359,16 +359,9 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     # /diagnostics: the node's status carries the counts
     name = ses.get_fully_qualified_name()
 
-    def reported() -> dict[str, str] | None:
-        for array in reversed(reports):
-            for status in array.status:
-                if status.name == name:
-                    return {kv.key: kv.value for kv in status.values}
-        return None
-
-    assert wait_until(lambda: (reported() or {}).get(f'{left}: {ses_node.NO_PARTNER}') == '1',
-                      TIMEOUT, spin=executor), reported()
-    values = reported()
+    assert wait_until(lambda: reported_status(reports, name).get(f'{left}: {ses_node.NO_PARTNER}')
+                      == '1', TIMEOUT, spin=executor), reported_status(reports, name)
+    values = reported_status(reports, name)
     assert values[f'{left_info}: {ses_node.UNUSABLE_K}'] == '1'
     assert values[f'{right}: {ses_node.SHORT_DATA}'] == '1'
     # each first refusal logged once, naming topic and reason; nothing raised

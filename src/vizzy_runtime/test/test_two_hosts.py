@@ -3,7 +3,9 @@ simulator and the gaze controller on one, foveation on the other, both with the 
 (VIZZY_DDS_LAN=1: Cyclone's defaults, i.e. the veth interface and multicast discovery). The second
 host sees the simulator's camera and foveation's output computed from it; a process there without
 the opt-in (loopback only, the default) sees nothing of the first host. The namespaces have no
-other link, so nothing leaves them. Skipped, with the reason, without root or iproute2."""
+other link and no route out (checked before anything runs in them), and their addresses are from
+TEST-NET-1 (192.0.2.0/24, RFC 5737: documentation only, never routed), so no packet can leave
+them. Skipped, with the reason, without root or iproute2."""
 
 from __future__ import annotations
 
@@ -38,8 +40,20 @@ print(json.dumps(counts))
 '''
 
 
-def _ip(*args: str) -> None:
-    subprocess.run(['ip', *args], check=True, capture_output=True, text=True, timeout=30)
+# The two namespaces' veth ends: TEST-NET-1 (RFC 5737), reachable only between the two.
+HOST_ADDRESSES = ('192.0.2.1/24', '192.0.2.2/24')
+
+
+def _ip(*args: str) -> str:
+    return subprocess.run(['ip', *args], check=True, capture_output=True, text=True,
+                          timeout=30).stdout
+
+
+def _confined(host: str, dev: str) -> bool:
+    """Only lo and this veth end in the namespace, and no default route."""
+    links = {line.split(':')[1].strip().split('@')[0]
+             for line in _ip('-n', host, '-o', 'link').splitlines()}
+    return links == {'lo', dev} and 'default' not in _ip('-n', host, 'route')
 
 
 @pytest.fixture
@@ -52,7 +66,8 @@ def two_hosts():
         for host in hosts:
             _ip('netns', 'add', host)
         _ip('link', 'add', f'va{n}', 'type', 'veth', 'peer', 'name', f'vb{n}')
-        for host, dev, addr in ((hosts[0], f'va{n}', '10.77.0.1/24'), (hosts[1], f'vb{n}', '10.77.0.2/24')):
+        for host, dev, addr in ((hosts[0], f'va{n}', HOST_ADDRESSES[0]),
+                                (hosts[1], f'vb{n}', HOST_ADDRESSES[1])):
             _ip('link', 'set', dev, 'netns', host)
             _ip('-n', host, 'addr', 'add', addr, 'dev', dev)
             _ip('-n', host, 'link', 'set', dev, 'up')
@@ -61,9 +76,12 @@ def two_hosts():
         for host in hosts:
             subprocess.run(['ip', 'netns', 'del', host], capture_output=True)
         pytest.skip(f'cannot make network namespaces here: {getattr(exc, "stderr", "") or exc}')
-    yield hosts
-    for host in hosts:
-        subprocess.run(['ip', 'netns', 'del', host], capture_output=True)
+    try:
+        assert _confined(hosts[0], f'va{n}') and _confined(hosts[1], f'vb{n}')
+        yield hosts
+    finally:
+        for host in hosts:
+            subprocess.run(['ip', 'netns', 'del', host], capture_output=True)
 
 
 def _in(host: str, args: list[str], lan: bool, **kw) -> subprocess.Popen:

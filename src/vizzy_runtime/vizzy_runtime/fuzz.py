@@ -88,7 +88,7 @@ def _cloud(frame: str = 'rgbd_camera_optical_frame') -> Any:
         data=np.frombuffer(pts.tobytes(), dtype=np.uint8).copy(), is_dense=True)
 
 
-def _joint_state_default() -> Any:
+def _joint_state() -> Any:
     names = ['neck_pan_joint', 'neck_tilt_joint', 'eyes_tilt_joint', 'l_eye_joint', 'r_eye_joint']
     return msgs.get_message('sensor_msgs/msg/JointState')(
         header=_header('base_link'), name=names, position=np.full(5, 0.05), velocity=np.zeros(5),
@@ -120,7 +120,7 @@ TEMPLATES: dict[str, Callable[[], Any]] = {
     'sensor_msgs/msg/Image': _image,
     'sensor_msgs/msg/CameraInfo': _camera_info,
     'sensor_msgs/msg/PointCloud2': _cloud,
-    'sensor_msgs/msg/JointState': _joint_state_default,
+    'sensor_msgs/msg/JointState': _joint_state,
     'active_vision_msgs/msg/GazeCommand': _gaze_command,
     'tf2_msgs/msg/TFMessage': _tf_message,
     'rosgraph_msgs/msg/Clock': _clock,
@@ -263,7 +263,7 @@ def _raw_bad(data: bytes, rng: random.Random) -> bytes:
             i = rng.randrange(4, len(raw)) if len(raw) > 4 else 0
             raw[i] ^= 1 << rng.randrange(8)
         out = bytes(raw)
-    return out + b'\0' * (-len(out) % 4)
+    return out
 
 
 class Mutator:
@@ -294,8 +294,7 @@ class Mutator:
 
 
 def _serialize(msg: Any, typename: str) -> bytes:
-    data = bytes(msgs.serialize(msg, typename))
-    return data + b'\0' * (-len(data) % 4)
+    return bytes(msgs.serialize(msg, typename))  # (RawWriter.write pads to 4 bytes)
 
 
 # --- the harness -------------------------------------------------------------------------------

@@ -367,6 +367,12 @@ class Launcher:
         try:
             previous: tuple[str, float] | None = None
             stop_started = time.monotonic()
+
+            def note_exits(procs: dict[str, subprocess.Popen[str]]) -> None:
+                for name, proc in procs.items():
+                    if name not in self.stop_seconds and proc.poll() is not None:
+                        self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
+
             for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
                 alive = {n: p for n, p in self.procs.items() if p.poll() is None}
                 if not alive:
@@ -383,13 +389,9 @@ class Launcher:
                         pass
                 end = time.monotonic() + grace
                 while time.monotonic() < end and any(p.poll() is None for p in alive.values()):
-                    for name, proc in alive.items():
-                        if name not in self.stop_seconds and proc.poll() is not None:
-                            self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
+                    note_exits(alive)
                     time.sleep(0.02)
-                for name, proc in alive.items():
-                    if name not in self.stop_seconds and proc.poll() is not None:
-                        self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
+                note_exits(alive)
                 previous = (signal.Signals(sig).name, grace)
             for t in self._threads:
                 t.join(timeout=1.0)

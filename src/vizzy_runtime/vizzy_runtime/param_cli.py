@@ -44,8 +44,8 @@ def _result(executor: Any, client: Any, future: Any, timeout: float, what: str) 
 
 def _value_text(value: Any) -> str:
     from .rclpy_compat.parameter import parameter_value_to_python
-    return repr(parameter_value_to_python(value)) if value.type in (5, 6, 7, 8, 9) else \
-        str(parameter_value_to_python(value))
+    python = parameter_value_to_python(value)
+    return repr(python) if isinstance(python, (list, bytes)) else str(python)  # arrays as lists
 
 
 def cmd_param(ns: argparse.Namespace) -> int:

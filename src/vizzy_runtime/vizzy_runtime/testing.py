@@ -229,6 +229,25 @@ def publish_until(publish: Callable[[], Any], done: Callable[[], bool], spin: An
     return False
 
 
+def refused_once(node: Any, spin: Any, publish: Callable[[], Any], key: tuple[str, str],
+                 timeout: float = 20.0, period: float = 2.0) -> bool:
+    """publish() until node.input_health's count of key (topic, reason) rose by one; sent again
+    only after period s without it (best-effort QoS may drop a sample)."""
+    before = node.input_health.refused().get(key, 0)
+    return publish_until(publish, lambda: node.input_health.refused().get(key, 0) > before,
+                         spin, timeout, period=period)
+
+
+def reported_status(reports: Sequence[Any], node_name: str) -> dict[str, str]:
+    """key -> value of the latest DiagnosticStatus named node_name in the DiagnosticArrays
+    received (reports), {} before the first."""
+    for array in reversed(reports):
+        for status in array.status:
+            if status.name == node_name:
+                return {kv.key: kv.value for kv in status.values}
+    return {}
+
+
 @contextlib.contextmanager
 def spinning(context: Any, nodes: Sequence[Any], ready: Callable[[], bool],
              timeout: float = 10.0) -> Iterator[Any]:

@@ -1,13 +1,13 @@
 """MOTChallenge sequence folders: ``img1/`` frames, ``gt/gt.txt``, optional ``seqinfo.ini``.
 
-Ground-truth rows are ``frame, id, x, y, w, h[, conf[, class[, visibility]]]`` (MOT16/17 have all
-nine; older sets put -1 in the unused columns). A file whose rows have ten values is MOT15's
+Ground-truth rows are ``frame, id, x, y, w, h[, conf[, class[, visibility]]]`` (MOT16/17 have
+all nine; older sets put -1 in the unused columns). A file whose rows have ten values is MOT15's
 layout, ``frame, id, x, y, w, h, conf, X, Y, Z`` (world coordinates, or -1): it has no class or
-visibility, so its rows are read as class -1 (a target) with visibility 1. What is evaluated follows the MOTChallenge
-devkit: rows with conf 0 are ignored; with a class column, class 1 (pedestrian) and -1 (no
-class) are targets, classes 2, 7, 8, 12 (person on vehicle, static person, distractor,
-reflection) are distractors (a hypothesis that matches one is not counted, see
-:mod:`.metrics`), all other classes are ignored.
+visibility, so its rows are read as class -1 (a target) with visibility 1. What is evaluated
+follows the MOTChallenge devkit: rows with conf 0 are ignored; with a class column, class 1
+(pedestrian) and -1 (no class) are targets, classes 2, 7, 8, 12 (person on vehicle, static
+person, distractor, reflection) are distractors (a hypothesis that matches one is not counted,
+see :mod:`.metrics`), all other classes are ignored.
 
 Every problem raises :class:`MotFolderError` naming the file (and line) and what is wrong.
 """
