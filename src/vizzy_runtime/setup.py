@@ -1,6 +1,6 @@
 from glob import glob
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 package_name = 'vizzy_runtime'
 
@@ -14,6 +14,11 @@ setup(
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
         ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.xml')),
     ],
+    # The loopback-bind LD_PRELOAD shim (csrc/loopback_bind.c; see vizzy_runtime/loopback.py): built
+    # like an extension so that pip and colcon compile it, never imported. Optional: without a C
+    # compiler the package still installs and the nodes say that their sockets bind 0.0.0.0.
+    ext_modules=[Extension('vizzy_runtime._loopback_bind', sources=['csrc/loopback_bind.c'],
+                           libraries=['dl'], optional=True)],
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='Vizzy active vision maintainers',
@@ -23,7 +28,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'vizzy = vizzy_runtime.cli:main',
+            'vizzy = vizzy_runtime.cli:console_main',
         ],
     },
 )

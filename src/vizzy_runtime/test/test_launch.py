@@ -17,7 +17,7 @@ from vizzy_runtime import dds
 from vizzy_runtime.launcher import (GRAPH_REMAPS, Graph, LaunchError, Launcher, NodeSpec, default_graph_file,
                                     find_entry_point, graph_namespace, load_graph, node_command,
                                     node_namespace)
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import bound_addresses, wait_until
 
 OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
            '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states', '/clock'}
@@ -46,6 +46,7 @@ def test_graph_starts_and_stops_cleanly(tmp_path):
         launcher.start()
         up = wait_until(all_outputs_flowing, 90)
         running = launcher.poll()
+        sockets = {name: bound_addresses(proc.pid) for name, proc in launcher.procs.items()}
     finally:
         codes = launcher.stop()
     log.seek(0)
@@ -53,6 +54,12 @@ def test_graph_starts_and_stops_cleanly(tmp_path):
     assert up, f'no messages on {OUTPUTS - heard}; launch log:\n{text[-3000:]}'
     assert all(code is None for code in running.values()), running
     assert codes == {name: 0 for name in codes}, f'unclean exit {codes}; log:\n{text[-3000:]}'
+    # nothing reachable beyond loopback (the bundled runtime through loopback.py's shim, Fast DDS
+    # through its profile)
+    assert all(sockets.values()), sockets
+    beyond = {name: [s for s in socks if s[1] not in ('127.0.0.1', '::1')]
+              for name, socks in sockets.items()}
+    assert not any(beyond.values()), beyond
 
 
 def test_real_launch_file_reads_the_same_graph():

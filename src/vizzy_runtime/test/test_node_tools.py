@@ -299,6 +299,9 @@ def test_main_for_runs_the_standard_main(monkeypatch):
             events.append('shutdown')
 
     monkeypatch.setattr(node_tools, 'rclpy', FakeRclpy())
+    # as a console script (no args) the main first re-executes itself with the loopback-bind
+    # shim (loopback.py); here that would replace the test process
+    monkeypatch.setattr(node_tools, 'exec_loopback_bound', lambda: events.append('exec'))
     # run() leaves SIGINT ignored (a node's process then exits); this test process goes on, and
     # the processes later tests start would inherit SIG_IGN: restore the handlers afterwards
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -314,7 +317,7 @@ def test_main_for_runs_the_standard_main(monkeypatch):
     try:
         with pytest.raises(ValueError):
             node_tools.main_for(failing_factory)()
-        assert events == [('init', None), 'shutdown']
+        assert events == ['exec', ('init', None), 'shutdown']
     finally:
         for sig, handler in handlers.items():
             signal.signal(sig, handler)

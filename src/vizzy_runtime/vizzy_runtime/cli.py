@@ -391,5 +391,12 @@ def main(argv: list[str] | None = None) -> int:
         return _die(str(err))
 
 
+def console_main() -> int:
+    """The `vizzy` program: main() in a process whose sockets bind 127.0.0.1 (loopback.py)."""
+    from .loopback import exec_loopback_bound
+    exec_loopback_bound()
+    return main()
+
+
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(console_main())

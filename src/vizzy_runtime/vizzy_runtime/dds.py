@@ -32,6 +32,7 @@ from cyclonedds.topic import Topic
 from rosbags.interfaces import Nodetype
 
 from . import msgs
+from .loopback import lan_mode
 
 ANY_STATE = SampleState.Any | ViewState.Any | InstanceState.Any
 MAX_AUTO_PARTICIPANTS = 60
@@ -58,12 +59,6 @@ def loopback_config() -> str:
         '<Peers><Peer address="127.0.0.1"/></Peers>'
         '</Discovery></Domain></CycloneDDS>'
     )
-
-
-def lan_mode() -> bool:
-    """LAN mode is an explicit opt-in (VIZZY_DDS_LAN=1): then Cyclone's own defaults or the user's
-    CYCLONEDDS_URI decide the interfaces, as for any ROS 2 process."""
-    return os.environ.get('VIZZY_DDS_LAN', '') in ('1', 'true', 'yes')
 
 
 def domain_id() -> int:

@@ -197,4 +197,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
+    from .loopback import exec_loopback_bound
+    exec_loopback_bound()   # the demo's own recorder binds 127.0.0.1 too
     sys.exit(main())

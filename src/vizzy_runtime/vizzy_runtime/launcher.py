@@ -33,6 +33,8 @@ from typing import Any, TextIO
 
 import yaml
 
+from . import loopback
+
 
 class LaunchError(ValueError):
     """A graph description or node that cannot be launched (the message says which and why)."""
@@ -267,7 +269,8 @@ class Launcher:
         self.namespace = graph_namespace(namespace)
         self._params_dir = tempfile.TemporaryDirectory(prefix='vizzy_launch_',
                                                        ignore_cleanup_errors=True)
-        self.env = {**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}
+        # nodes of the bundled runtime bind their receive sockets to 127.0.0.1 (loopback.py)
+        self.env = dict(loopback.preload_env({**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}))
         self.grace_s = grace_s
         self.output = output or sys.stdout
         self.procs: dict[str, subprocess.Popen[str]] = {}

@@ -288,3 +288,32 @@ def check_node_parameters(ros_node: Any, parameters: Sequence[Any],
     result = ros_node.set_parameters([Parameter(bad_name, value=bad_value)])[0]
     assert not result.successful, f'{bad_name}={bad_value!r} was accepted'
     assert bad_name in result.reason, f'the reason does not name {bad_name}: {result.reason!r}'
+
+
+def bound_addresses(pid: int) -> list[tuple[str, str, int]]:
+    """The inet sockets a process holds, as (protocol, local address, port), read from /proc (the
+    process's fds and its network namespace's udp/tcp tables)."""
+    import ipaddress
+    import os
+    inodes = set()
+    for fd in os.listdir(f'/proc/{pid}/fd'):
+        try:
+            link = os.readlink(f'/proc/{pid}/fd/{fd}')
+        except OSError:
+            continue  # closed meanwhile
+        if link.startswith('socket:['):
+            inodes.add(link[8:-1])
+    found = []
+    for proto in ('udp', 'udp6', 'tcp', 'tcp6'):
+        with open(f'/proc/{pid}/net/{proto}') as table:
+            next(table)
+            for row in table:
+                cols = row.split()
+                if cols[9] not in inodes:
+                    continue
+                hex_ip, hex_port = cols[1].split(':')
+                raw = bytes.fromhex(hex_ip)
+                # the kernel prints each 32-bit word in host (little-endian) order
+                words = b''.join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))
+                found.append((proto, str(ipaddress.ip_address(words)), int(hex_port, 16)))
+    return found

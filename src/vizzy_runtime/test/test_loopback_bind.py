@@ -1,0 +1,86 @@
+"""Receive sockets on 127.0.0.1 by default (loopback.py and its LD_PRELOAD shim): Cyclone alone binds
+0.0.0.0, with the shim every socket of the bundled runtime is on loopback, and VIZZY_DDS_LAN=1 turns
+the rewrite off. The whole graph's nodes are checked in test_launch.py."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+
+import pytest
+
+from vizzy_runtime import loopback
+
+if loopback.shim_path() is None:
+    pytest.skip('the loopback-bind shim is not built (reinstall vizzy_runtime)', allow_module_level=True)
+
+BIND = '''
+import json, socket, sys
+family = socket.AF_INET6 if sys.argv[1] == '::' else socket.AF_INET
+s = socket.socket(family, socket.SOCK_DGRAM)
+s.bind((sys.argv[1], 0))
+print(json.dumps(s.getsockname()[0]))
+'''
+
+# A bundled-runtime participant, then the addresses its sockets are bound to.
+PARTICIPANT = '''
+import json, os
+from vizzy_runtime import dds
+from vizzy_runtime.testing import bound_addresses
+dds.participant()
+print(json.dumps(sorted({addr for _, addr, _ in bound_addresses(os.getpid())})))
+'''
+
+
+def _run(code: str, *args: str, **env: str) -> str:
+    base = {k: v for k, v in os.environ.items() if k not in ('LD_PRELOAD', loopback.EXEC_MARK)}
+    proc = subprocess.run([sys.executable, '-c', code, *args], env={**base, **env},
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _ipv6() -> bool:
+    try:
+        with socket.socket(socket.AF_INET6, socket.SOCK_DGRAM) as s:
+            s.bind(('::1', 0))
+        return True
+    except OSError:
+        return False
+
+
+def test_the_shim_binds_loopback_instead_of_the_wildcard() -> None:
+    shim = str(loopback.shim_path())
+    assert _run(BIND, '0.0.0.0') == '0.0.0.0'                     # without it: every interface
+    assert _run(BIND, '0.0.0.0', LD_PRELOAD=shim) == '127.0.0.1'
+    assert _run(BIND, '127.0.0.1', LD_PRELOAD=shim) == '127.0.0.1'  # explicit addresses unchanged
+    assert _run(BIND, '0.0.0.0', LD_PRELOAD=shim, VIZZY_DDS_LAN='1') == '0.0.0.0'  # the opt-in
+    if _ipv6():
+        assert _run(BIND, '::', LD_PRELOAD=shim) == '::1'
+
+
+@pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
+def test_cyclone_binds_every_interface_and_the_shim_keeps_it_on_loopback() -> None:
+    shim = str(loopback.shim_path())
+    assert '0.0.0.0' in _run(PARTICIPANT, VIZZY_RUNTIME='bundled')   # why the shim exists
+    assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled', LD_PRELOAD=shim) == ['127.0.0.1']
+
+
+def test_an_entry_point_reexecutes_itself_once_with_the_shim() -> None:
+    code = ('import json, os\nfrom vizzy_runtime.loopback import exec_loopback_bound\n'
+            'exec_loopback_bound()\nprint(json.dumps(os.environ.get("LD_PRELOAD")))')
+    assert _run(code, VIZZY_RUNTIME='bundled') == str(loopback.shim_path())
+    assert _run(code, VIZZY_RUNTIME='bundled', VIZZY_DDS_LAN='1') is None
+    assert _run(code, VIZZY_RUNTIME='ros') is None   # the real rclpy: its own configuration rules
+
+
+def test_children_get_the_shim_only_when_wanted() -> None:
+    shim = str(loopback.shim_path())
+    env = loopback.preload_env({'VIZZY_RUNTIME': 'bundled', 'LD_PRELOAD': '/x/libother.so'})
+    assert env['LD_PRELOAD'].split() == [shim, '/x/libother.so']
+    assert loopback.preload_env(dict(env))['LD_PRELOAD'] == env['LD_PRELOAD']   # not twice
+    assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'bundled', 'VIZZY_DDS_LAN': '1'})
+    assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'ros'})
