@@ -1,7 +1,8 @@
 """`vizzy`: the ros2 verbs people know, for machines without ROS 2.
 
     vizzy run <package> <executable> [args] [--ros-args ...]
-    vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S]
+    vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S] [--view-port P | --no-view]
+    vizzy view [--port 8765] [--host ADDR]            (Foxglove live view of the running graph)
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
     vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
@@ -16,11 +17,16 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import signal
 import sys
+import threading
 import time
 from typing import Any, Sequence
 
 import numpy as np
+
+
+DEFAULT_VIEW_PORT = 8765   # Foxglove's default (live_view.DEFAULT_PORT; not imported: it is slow)
 
 
 def _die(message: str, code: int = 2) -> int:
@@ -40,12 +46,35 @@ def cmd_run(ns: argparse.Namespace) -> int:
 
 def cmd_launch(ns: argparse.Namespace) -> int:
     from .launcher import launch
-    launcher = launch(ns.graph, ns.duration, namespace=ns.namespace, grace_s=ns.grace)
+    launcher = launch(ns.graph, ns.duration, namespace=ns.namespace, grace_s=ns.grace,
+                      view_port=None if ns.no_view else ns.view_port)
     failed = launcher.failed()
     for name, code in failed.items():
         print(f'vizzy: launch: node {name} failed (exit code {code}); see its output above',
               file=sys.stderr)
     return 1 if failed else 0
+
+
+def cmd_view(ns: argparse.Namespace) -> int:
+    from .live_view import LiveView
+    view = LiveView(host=ns.host, port=ns.port)
+    try:
+        view.start()
+    except Exception as exc:  # noqa: BLE001 - e.g. the port is taken
+        return _die(f'view: cannot serve on {view.host}:{ns.port} ({exc})')
+    print(f'serving the graph to Foxglove on {view.url} (Open connection > Foxglove WebSocket; '
+          'layout: src/vizzy_runtime/config/foxglove_layout.json); Ctrl-C to stop', flush=True)
+    done = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: done.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        done.wait(ns.duration)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        view.stop()
+    served = ', '.join(f'{t} {n}' for t, n in sorted(view.sent.items())) or 'nothing (no subscriber)'
+    print(f'served: {served}', flush=True)
+    return 0
 
 
 # --- topics ------------------------------------------------------------------------------------
@@ -323,7 +352,18 @@ def build_parser() -> argparse.ArgumentParser:
     la.add_argument('--grace', type=float, default=5.0, metavar='S',
                     help='on stop, seconds from SIGINT to SIGTERM for nodes still running '
                          '(default 5; like ros2 launch sigterm_timeout)')
+    la.add_argument('--view-port', type=int, default=DEFAULT_VIEW_PORT, metavar='PORT',
+                    help=f'serve the graph to Foxglove on ws://127.0.0.1:PORT (default {DEFAULT_VIEW_PORT})')
+    la.add_argument('--no-view', action='store_true', help='no Foxglove live view')
     la.set_defaults(func=cmd_launch)
+
+    view = sub.add_parser('view', help='serve the running graph (or a bag being played) to Foxglove')
+    view.add_argument('--port', type=int, default=DEFAULT_VIEW_PORT,
+                      help=f'WebSocket port (default {DEFAULT_VIEW_PORT}; 0: any free one)')
+    view.add_argument('--host', default=None,
+                      help='address to listen on (default 127.0.0.1; every interface with VIZZY_DDS_LAN=1)')
+    view.add_argument('--duration', type=float, help='stop after this many seconds')
+    view.set_defaults(func=cmd_view)
 
     topic = sub.add_parser('topic', help='inspect topics').add_subparsers(dest='topic_verb', required=True)
     tl = topic.add_parser('list')

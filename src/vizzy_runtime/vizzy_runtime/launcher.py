@@ -414,14 +414,19 @@ class Launcher:
 
 def launch(graph_file: str | Path | None = None, duration: float | None = None,
            env: dict[str, str] | None = None, namespace: str = '',
-           grace_s: float = 5.0) -> Launcher:
+           grace_s: float = 5.0, view_port: int | None = None) -> Launcher:
     """Run a graph (in namespace, '' for the root) until duration, Ctrl-C, SIGTERM or SIGHUP and
     stop it cleanly (SIGINT, then SIGTERM to nodes still running grace_s seconds later); returns
-    the stopped Launcher (exit codes: poll(); failures: failed(); escalations: escalated)."""
+    the stopped Launcher (exit codes: poll(); failures: failed(); escalations: escalated).
+    view_port: serve the graph to Foxglove on that port meanwhile (live_view.py); None: no view."""
     graph = load_graph(graph_file or default_graph_file())
     launcher = Launcher(graph, env=env, namespace=namespace, grace_s=grace_s)
+    view = None
     with stop_on_signals():
         try:
+            if view_port is not None:
+                from .live_view import start_or_warn
+                view = start_or_warn(view_port)
             launcher.start()
             launcher.wait(duration)
         except LaunchStopped as stop:
@@ -430,4 +435,6 @@ def launch(graph_file: str | Path | None = None, duration: float | None = None,
             launcher.output.write('[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)\n')
         finally:
             launcher.stop()
+            if view is not None:
+                view.stop()
     return launcher

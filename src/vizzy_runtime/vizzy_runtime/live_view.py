@@ -1,0 +1,209 @@
+"""Live view: the graph's topics served to Foxglove over WebSocket, without ROS (foxglove-sdk).
+
+    vizzy view [--port 8765] [--host 127.0.0.1]     # a running graph, or a bag being played
+    vizzy launch / make demo                         # start one by default (--no-view, --view-port)
+
+Every topic with a publisher on the DDS domain becomes a channel named like the topic, with the
+message's ROS 2 schema (schema encoding ros2msg, message encoding cdr): the Foxglove app decodes
+images, compressed images, point clouds, markers, tf, /rosout and /diagnostics with its built-in
+ROS 2 support, no plugin and no ROS installation. The CDR bytes are passed through untouched.
+
+A topic is read from DDS only while some client subscribes to it, so an idle server costs only
+discovery. Latched topics (transient local: /tf_static, /robot_description) are read again from
+their publishers for each new subscription, so a client that connects late still gets them.
+
+The server listens on 127.0.0.1 (the networking default); with the LAN opt-in (VIZZY_DDS_LAN=1) on
+every interface. Open it in the Foxglove app (Open connection > Foxglove WebSocket) and import the
+layout `config/foxglove_layout.json` (`foxglove_layout.py` makes it).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import Counter
+from typing import Any
+
+from . import loopback, msgs
+
+log = logging.getLogger('vizzy_runtime.live_view')
+
+DEFAULT_PORT = 8765
+# Samples kept by a reader between takes: a subscriber wants the newest (an image is 0.9 MB).
+DEPTH = 4
+
+
+def default_host() -> str:
+    return '0.0.0.0' if loopback.lan_mode() else '127.0.0.1'
+
+
+def _hidden(topic: str) -> bool:
+    return any(part.startswith('_') for part in topic.split('/'))
+
+
+class LiveView:
+    """A foxglove-sdk WebSocket server bridging the DDS graph's topics (see the module docstring).
+
+    start() returns the port actually bound (pass port=0 for a free one); stop() closes the server
+    and every reader. `channels` maps each served topic to its type, `sent` counts messages logged.
+    """
+
+    def __init__(self, host: str | None = None, port: int = DEFAULT_PORT, *, name: str = 'vizzy',
+                 discovery_interval: float = 0.5) -> None:
+        self.host = default_host() if host is None else host
+        self.requested_port = port
+        self.name = name
+        self.discovery_interval = discovery_interval
+        self.channels: dict[str, str] = {}
+        self.sent: Counter[str] = Counter()
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stopping = threading.Event()
+        self._channel_objs: dict[str, Any] = {}
+        self._offers: dict[str, list[Any]] = {}
+        self._subscribers: dict[str, set[int]] = {}
+        self._refresh: set[str] = set()      # latched topics with a new subscriber: read again
+        self._readers: dict[str, Any] = {}
+        self._skipped: set[str] = set()
+        self._server: Any = None
+        self._thread: threading.Thread | None = None
+
+    # -- lifecycle ---------------------------------------------------------------------------------
+
+    def start(self) -> int:
+        import foxglove
+        from . import dds
+        self._context = foxglove.Context()
+        self._discovery = dds.Discovery()
+        self._server = foxglove.start_server(
+            name=self.name, host=self.host, port=self.requested_port, context=self._context,
+            server_listener=self, capabilities=[])
+        self._thread = threading.Thread(target=self._loop, name='live_view', daemon=True)
+        self._thread.start()
+        return self.port
+
+    @property
+    def port(self) -> int:
+        return int(self._server.port) if self._server is not None else 0
+
+    @property
+    def url(self) -> str:
+        host = '127.0.0.1' if self.host in ('0.0.0.0', '') else self.host
+        return f'ws://{host}:{self.port}'
+
+    def stop(self) -> None:
+        from . import dds
+        self._stopping.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(5)
+        with self._lock:
+            readers, self._readers = self._readers, {}
+        for reader in readers.values():
+            dds.delete(reader)
+        if self._server is not None:
+            self._server.stop()
+            self._server = None
+
+    # -- foxglove ServerListener (called from the server's threads: note and wake the loop) -------
+
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        with self._lock:
+            self._subscribers.setdefault(channel.topic, set()).add(client.id)
+            self._refresh.add(channel.topic)
+        self._wake.set()
+
+    def on_unsubscribe(self, client: Any, channel: Any) -> None:
+        with self._lock:
+            self._subscribers.get(channel.topic, set()).discard(client.id)
+        self._wake.set()
+
+    # -- the loop: discovery, channels, readers ----------------------------------------------------
+
+    def _loop(self) -> None:
+        while not self._stopping.is_set():
+            try:
+                self._advertise_new()
+                self._reconcile_readers()
+            except Exception as exc:  # noqa: BLE001 - the view must never take its host down
+                log.warning('live view: %s', exc)
+            self._wake.wait(self.discovery_interval)
+            self._wake.clear()
+
+    def _advertise_new(self) -> None:
+        import foxglove
+        offers: dict[str, list[Any]] = {}
+        types: dict[str, str] = {}
+        for ep in self._discovery.endpoints():
+            if ep.is_writer and not _hidden(ep.topic):
+                offers.setdefault(ep.topic, []).append(ep.qos)
+                types.setdefault(ep.topic, ep.typename)
+        for topic, typename in sorted(types.items()):
+            if topic in self._channel_objs or topic in self._skipped:
+                continue
+            try:
+                schema = foxglove.Schema(name=typename, encoding='ros2msg',
+                                         data=msgs.message_definition(typename).encode())
+            except Exception as exc:  # noqa: BLE001 - a type we have no definition for
+                log.warning('live view: not serving %s [%s]: %s', topic, typename, exc)
+                self._skipped.add(topic)
+                continue
+            self._channel_objs[topic] = foxglove.Channel(topic, schema=schema, message_encoding='cdr',
+                                                         context=self._context)
+            self.channels[topic] = typename
+        with self._lock:
+            self._offers.update(offers)
+
+    def _reconcile_readers(self) -> None:
+        from . import dds
+        with self._lock:
+            wanted = {t for t, clients in self._subscribers.items() if clients and t in self.channels}
+            refresh, self._refresh = self._refresh & wanted, set()
+            offers = dict(self._offers)
+        for topic in list(self._readers):
+            latched = self._readers[topic].qos.transient_local
+            if topic not in wanted or (topic in refresh and latched):
+                dds.delete(self._readers.pop(topic))
+        for topic in sorted(wanted - set(self._readers)):
+            qos = offers.get(topic, [])
+            latched = bool(qos) and all(q.transient_local for q in qos)
+            reliable = bool(qos) and all(q.reliable for q in qos)
+            request = dds.QoS(reliable=latched and reliable, transient_local=latched,
+                              depth=100 if latched else DEPTH)
+            try:
+                self._readers[topic] = dds.RawReader(topic, self.channels[topic], request,
+                                                     on_data=self._on_data)
+            except Exception as exc:  # noqa: BLE001 - e.g. a type that disagrees with the peer's
+                log.warning('live view: cannot read %s: %s', topic, exc)
+
+    def _on_data(self, reader: Any) -> None:
+        """Cyclone's listener thread: pass the CDR bytes on (never raise into Cyclone)."""
+        try:
+            channel = self._channel_objs.get(reader.topic_name)
+            samples = reader.take(64)
+            if channel is None:
+                return
+            now = time.time_ns()
+            for data, _source_ns in samples:
+                channel.log(data, log_time=now)
+            self.sent[reader.topic_name] += len(samples)
+        except Exception as exc:  # noqa: BLE001
+            log.warning('live view: %s: %s', reader.topic_name, exc)
+
+
+def start_or_warn(port: int | None, host: str | None = None) -> LiveView | None:
+    """A started LiveView, or None with one line saying why (the port is taken: another demo on
+    this machine); port None means off. For `vizzy launch` and `make demo`, which go on without."""
+    if port is None:
+        return None
+    view = LiveView(host=host, port=port)
+    try:
+        view.start()
+    except Exception as exc:  # noqa: BLE001 - e.g. address in use: the graph runs without a view
+        print(f'vizzy: live view off: cannot serve on {view.host}:{port} ({exc}); '
+              'choose another with --view-port', flush=True)
+        return None
+    print(f'vizzy: live view on {view.url} (Foxglove: Open connection > Foxglove WebSocket; '
+          'layout: src/vizzy_runtime/config/foxglove_layout.json)', flush=True)
+    return view
