@@ -1,17 +1,20 @@
 """Stop and respawn benchmark: how long each node of the running graph takes to stop on SIGINT
 (with its work in flight), and to be back with its output flowing after a SIGKILL.
 
-Starts the shipped graph (src/vizzy_runtime/config/graph.yaml; it respawns every node) with the
-launcher, waits until every output flows, then, node by node, --rounds times:
+Starts the shipped graph (src/vizzy_runtime/config/graph.yaml; it respawns every node and keeps
+a standby per node) with the launcher, waits until every output flows, then, node by node,
+--rounds times:
   1. SIGINT to the node's process while it works: seconds until the process has exited
      (issue 12's bound: 2 s);
-  2. wait until the respawned process publishes, then SIGKILL it: seconds from the kill until its
-     output flows again from the next process (the respawn time: the launcher's respawn_delay,
-     the interpreter's start-up, imports, model loading, the first result).
+  2. wait until the respawned process publishes (and, with standbys, until the node's next standby
+     has had --standby-ready seconds for its imports), then SIGKILL it: seconds from the kill until
+     its output flows again from the next process. With a standby: the launcher's respawn_delay,
+     node construction, the first result; with --cold (no standbys, as ros2 launch respawns):
+     also the interpreter's start-up and the imports (torch, Open3D, MuJoCo).
 Prints, last, one JSON object: stop_after_sigint_s and back_after_sigkill_s per node (max and
 median over the rounds), and their maxima over nodes.
 
-    .venv/bin/python bench/lifecycle.py [--rounds 3]
+    .venv/bin/python bench/lifecycle.py [--rounds 3] [--cold]
 """
 
 from __future__ import annotations
@@ -52,13 +55,32 @@ def summary(values: list[float]) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--rounds', type=int, default=3)
+    parser.add_argument('--cold', action='store_true', help='no standbys: every respawn starts cold')
+    parser.add_argument('--standby-ready', type=float, default=8.0,
+                        help='seconds a new standby gets for its imports before the kill')
     ns = parser.parse_args()
     log = tempfile.NamedTemporaryFile('w+', prefix='vizzy_lifecycle_', suffix='.log', delete=False)
     graph = load_graph(default_graph_file())
+    graph.respawn_standby = not ns.cold
+    for spec in graph.nodes:
+        spec.respawn_standby = None
+    # standbys right away, one per second (the bench kills nodes sooner than the shipped 30 s)
+    Launcher.STANDBY_AFTER_S, Launcher.STANDBY_STAGGER_S = 0.0, 1.0
     launcher = Launcher(graph, output=log)
     readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=50)) for n, (t, ty) in OUTPUT.items()}
     stop_s: dict[str, list[float]] = {n: [] for n in OUTPUT}
     back_s: dict[str, list[float]] = {n: [] for n in OUTPUT}
+
+    def standby_ready(name: str) -> bool:
+        spare = launcher.standbys.get(name)
+        if ns.cold:
+            return True
+        if spare is None or spare.poll() is not None:
+            return False
+        born.setdefault(spare.pid, time.monotonic())
+        return time.monotonic() - born[spare.pid] >= ns.standby_ready
+
+    born: dict[int, float] = {}
 
     def flowing_from_new(name: str, old: object) -> bool:
         return launcher.procs[name] is not old and launcher.procs[name].poll() is None \
@@ -71,6 +93,7 @@ def main() -> int:
         for name in OUTPUT:
             for _ in range(ns.rounds):
                 proc = launcher.procs[name]
+                wait_until(lambda: standby_ready(name), TIMEOUT_S)
                 t0 = time.monotonic()
                 proc.send_signal(signal.SIGINT)
                 if not wait_until(lambda: proc.poll() is not None, 30):
@@ -80,6 +103,7 @@ def main() -> int:
                 if not wait_until(lambda: flowing_from_new(name, proc), TIMEOUT_S):
                     raise SystemExit(f'bench/lifecycle: {name} did not come back after SIGINT')
                 proc = launcher.procs[name]
+                wait_until(lambda: standby_ready(name), TIMEOUT_S)
                 t0 = time.monotonic()
                 os.killpg(proc.pid, signal.SIGKILL)
                 wait_until(lambda: proc.poll() is not None, 30)
@@ -94,7 +118,7 @@ def main() -> int:
         for r in readers.values():
             dds.delete(r)
     result = {
-        'rounds': ns.rounds,
+        'rounds': ns.rounds, 'standby': not ns.cold,
         'respawn_delay_s': {n.name: graph.respawns(n)[1] for n in graph.nodes},
         'stop_after_sigint_s': {n: summary(v) for n, v in stop_s.items()},
         'back_after_sigkill_s': {n: summary(v) for n, v in back_s.items()},

@@ -25,6 +25,7 @@ setup(
         'console_scripts': [
             'sim = vizzy_sim_bridge.sim_node:main',
             'gaze_controller = vizzy_sim_bridge.gaze_controller_node:main',
+            'vizzy_head_urdf = vizzy_sim_bridge.head_urdf:main',
         ],
     },
 )

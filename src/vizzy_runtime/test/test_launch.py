@@ -279,3 +279,57 @@ def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
     assert codes == {'bad': 2, 'twice': -9}, text
     assert launcher.respawned == {'twice': 1}, text
     assert 'process bad has finished (exit code 2) (a start-up error: not respawned)' in text, text
+
+
+def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, monkeypatch):
+    """respawn_standby: a spare process with the node's modules imported waits beside the node; after
+    a SIGKILL it takes over (same pid as the spare) and /gaze/state flows from it; a new spare
+    follows; stop() dismisses the spares (no process left). Prints the time from the kill to the
+    first new message."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from mixed_support import graph_subset
+    path = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller'], use_sim_time=False)
+    data = yaml.safe_load(path.read_text())
+    data.update(respawn=True, respawn_delay=0.0, respawn_standby=True)
+    path.write_text(yaml.safe_dump(data))
+    monkeypatch.setattr(Launcher, 'STANDBY_AFTER_S', 0.0)
+    log = open(tmp_path / 'launch.log', 'w+')
+    launcher = Launcher(load_graph(path), output=log)
+    reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState', dds.QoS(reliable=False))
+    spares = []
+    try:
+        launcher.start()
+        assert wait_until(lambda: bool(reader.take(8)), 60), 'gaze_controller never published'
+        assert wait_until(lambda: 'gaze_controller' in launcher.standbys, 30)
+        spare = launcher.standbys['gaze_controller']
+        spares.append(spare)
+        time.sleep(1.0)  # let the spare finish its imports (not needed for correctness)
+        first = launcher.procs['gaze_controller']
+        killed_at = time.monotonic()
+        os.killpg(first.pid, signal.SIGKILL)
+        assert wait_until(lambda: launcher.procs['gaze_controller'] is spare, 30)
+        reader.take(64)
+        assert wait_until(lambda: bool(reader.take(8)), 60), 'the standby never published'
+        back_s = time.monotonic() - killed_at
+        assert wait_until(lambda: launcher.standbys.get('gaze_controller') not in (None, spare), 30)
+        spares.append(launcher.standbys['gaze_controller'])
+    finally:
+        codes = launcher.stop()
+        dds.delete(reader)
+    log.seek(0)
+    text = log.read()
+    print(f'standby: /gaze/state flowing again {back_s:.2f} s after SIGKILL')
+    assert f'standby with pid [{spare.pid}] took over: gaze_controller (respawn 1)' in text, text
+    assert codes == {'gaze_controller': 0}, text
+    assert launcher.standbys == {} and all(p.poll() is not None for p in spares)
+
+
+def test_respawn_standby_must_be_a_boolean(tmp_path):
+    path = tmp_path / 'g.yaml'
+    path.write_text('respawn_standby: 3\nnodes: [{package: p, executable: e}]\n')
+    with pytest.raises(LaunchError, match='graph: respawn_standby must be true or false'):
+        load_graph(path)
+    path.write_text('respawn: true\nnodes: [{package: p, executable: e, respawn_standby: true}, '
+                    '{package: p, executable: f}]\n')
+    graph = load_graph(path)
+    assert [graph.standby(n) for n in graph.nodes] == [True, False]

@@ -28,7 +28,7 @@ JAZZY_PACKAGES = frozenset({
     'ament_cmake', 'ament_index_python', 'builtin_interfaces', 'geometry_msgs', 'launch',
     'launch_ros', 'rcl_interfaces', 'rclpy', 'rmw_dds_common', 'rosgraph_msgs',
     'rosidl_default_generators', 'rosidl_default_runtime', 'sensor_msgs', 'std_msgs', 'tf2_msgs',
-    'visualization_msgs', 'diagnostic_msgs',
+    'visualization_msgs', 'diagnostic_msgs', 'robot_state_publisher', 'rviz2',
 })
 
 # System rosdep keys, each checked in ros/rosdistro rosdep/python.yaml (stored copy at commit

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import signal
 import sys
 import threading
@@ -39,9 +40,30 @@ def _die(message: str, code: int = 2) -> int:
 def cmd_run(ns: argparse.Namespace) -> int:
     from .launcher import find_entry_point
     ep = find_entry_point(ns.package, ns.executable)
+    main = ep.load()
+    if ns.standby and not _standby_released():
+        # dismissed: nothing to clean up (no DDS yet, no files), and the interpreter's own exit
+        # would spend seconds collecting the imported modules (torch) for nothing
+        sys.stdout.flush()
+        os._exit(0)
     sys.argv = [ns.executable, *ns.args]
-    result = ep.load()()
+    result = main()
     return int(result or 0)
+
+
+def _standby_released() -> bool:
+    """`vizzy run --standby`: the node's modules are imported (the slow part of a start); wait for
+    `go` on stdin, then run it (the launcher's respawn_standby). False: stdin ended or a signal
+    came first (the launcher dismissed this spare)."""
+    previous = {sig: signal.signal(sig, lambda *_: sys.exit(0)) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        line = sys.stdin.readline()
+    except (SystemExit, KeyboardInterrupt):
+        return False
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    return line.strip() == 'go'
 
 
 def cmd_launch(ns: argparse.Namespace) -> int:
@@ -338,6 +360,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest='verb', required=True)
 
     run = sub.add_parser('run', help='run one node (like ros2 run)')
+    run.add_argument('--standby', action='store_true',
+                     help='import the node, then wait for "go" on stdin before running it (the '
+                          "launcher's respawn_standby)")
     run.add_argument('package')
     run.add_argument('executable')
     run.add_argument('args', nargs=argparse.REMAINDER, help='node arguments, incl. --ros-args ...')

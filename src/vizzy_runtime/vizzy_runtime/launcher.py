@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
+import math
 import os
 import re
 import signal
@@ -81,6 +82,7 @@ class NodeSpec:
     respawn: bool | None = None  # None: the graph's value
     respawn_delay: float | None = None  # [s]; None: the graph's value
     respawn_max_retries: int = -1  # as launch: -1 = no limit
+    respawn_standby: bool | None = None  # None: the graph's value
 
 
 @dataclass
@@ -89,10 +91,16 @@ class Graph:
     use_sim_time: bool = False
     respawn: bool = False
     respawn_delay: float = 0.0
+    respawn_standby: bool = False
 
     def respawns(self, spec: NodeSpec) -> tuple[bool, float]:
         return (self.respawn if spec.respawn is None else spec.respawn,
                 self.respawn_delay if spec.respawn_delay is None else spec.respawn_delay)
+
+    def standby(self, spec: NodeSpec) -> bool:
+        """Whether the launcher keeps a started-and-imported spare process for this node."""
+        wanted = self.respawn_standby if spec.respawn_standby is None else spec.respawn_standby
+        return wanted and self.respawns(spec)[0]
 
 
 def share_dir(package: str) -> Path:
@@ -139,6 +147,10 @@ def load_graph(path: str | Path) -> Graph:
             if isinstance(retries, bool) or not isinstance(retries, int) or retries < -1:
                 raise LaunchError(f'graph file {p}: {where}: respawn_max_retries must be an integer >= -1')
             out['respawn_max_retries'] = retries
+        if 'respawn_standby' in entry:
+            if not isinstance(entry['respawn_standby'], bool):
+                raise LaunchError(f'graph file {p}: {where}: respawn_standby must be true or false')
+            out['respawn_standby'] = entry['respawn_standby']
         return out
 
     nodes = []
@@ -221,6 +233,13 @@ def node_command(spec: NodeSpec, use_sim_time: bool, namespace: str = '',
             *spec.arguments, *ros_args]
 
 
+def standby_command(cmd: list[str]) -> list[str]:
+    """node_command's command for a standby: `vizzy run --standby ...` imports the node, then waits
+    for `go` on its stdin (cli.cmd_run)."""
+    i = cmd.index('run')
+    return [*cmd[:i + 1], '--standby', *cmd[i + 1:]]
+
+
 def _pump(prefix: str, stream: TextIO, out: TextIO) -> None:
     for line in stream:
         out.write(f'{prefix} {line}')
@@ -274,6 +293,8 @@ class Launcher:
         self.grace_s = grace_s
         self.output = output or sys.stdout
         self.procs: dict[str, subprocess.Popen[str]] = {}
+        # respawn_standby nodes: a spare process per node, imports done, waiting to take over
+        self.standbys: dict[str, subprocess.Popen[str]] = {}
         self.escalated: dict[str, str] = {}  # node -> the signal it needed beyond SIGINT, and why
         self.respawned: dict[str, int] = {}  # node -> times it was started again
         self.stop_seconds: dict[str, float] = {}  # node -> seconds from stop()'s SIGINT to its exit
@@ -283,6 +304,14 @@ class Launcher:
         self._reported: set[str] = set()
         self._pending_respawns = 0
         self._supervisor: threading.Thread | None = None
+        self._started_at: dict[str, float] = {}
+        self._last_standby_at = -math.inf
+
+    # A node's standby starts once the node has run this long, and one standby at a time: their
+    # imports (seconds of CPU each) must not compete with the graph's own start-up, nor cost
+    # anything to a short run (a demo, a test).
+    STANDBY_AFTER_S = 30.0
+    STANDBY_STAGGER_S = 3.0
 
     def start(self) -> None:
         """Start every node (and the supervisor that reports exits and respawns)."""
@@ -296,17 +325,50 @@ class Launcher:
                                             daemon=True)
         self._supervisor.start()
 
-    def _spawn(self, name: str) -> None:
-        spec, cmd, index = self._commands[name]
+    def _popen(self, name: str, cmd: list[str], **kwargs: Any) -> subprocess.Popen[str]:
+        index = self._commands[name][2]
         proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, bufsize=1, start_new_session=True)
-        self.procs[name] = proc
-        again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
-        self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: {name}{again}\n')
+                                text=True, bufsize=1, start_new_session=True, **kwargs)
         t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output),
                              daemon=True)
         t.start()
         self._threads.append(t)
+        return proc
+
+    def _spawn(self, name: str) -> None:
+        again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
+        standby = self.standbys.pop(name, None)
+        if standby is not None and standby.poll() is None:
+            try:
+                assert standby.stdin is not None
+                standby.stdin.write('go\n')
+                standby.stdin.close()
+            except (OSError, ValueError):
+                standby = None   # it died meanwhile: start a fresh process instead
+            else:
+                self.procs[name] = standby
+                self._started_at[name] = time.monotonic()
+                self.output.write(f'[INFO] [launch]: standby with pid [{standby.pid}] took over: '
+                                  f'{name}{again}\n')
+                return
+        proc = self._popen(name, self._commands[name][1])
+        self.procs[name] = proc
+        self._started_at[name] = time.monotonic()
+        self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: {name}{again}\n')
+
+    def _keep_standby(self, name: str) -> None:
+        """Start name's standby once its node has run STANDBY_AFTER_S (not at graph start-up, where
+        the spares' imports would slow every node down)."""
+        spec, cmd, _ = self._commands[name]
+        if not self.graph.standby(spec) or name in self.standbys and self.standbys[name].poll() is None:
+            return
+        started = self._started_at.get(name)
+        now = time.monotonic()
+        if started is None or now - started < self.STANDBY_AFTER_S \
+                or now - self._last_standby_at < self.STANDBY_STAGGER_S:
+            return
+        self._last_standby_at = now
+        self.standbys[name] = self._popen(name, standby_command(cmd), stdin=subprocess.PIPE)
 
     def _supervise(self) -> None:
         """Report each node's exit; respawn the nodes whose graph entry asks for it (after their
@@ -340,6 +402,9 @@ class Launcher:
                     self._reported.discard(name)
                     self._spawn(name)
             self._pending_respawns = len(due)
+            for name, proc in list(self.procs.items()):
+                if proc.poll() is None:
+                    self._keep_standby(name)
             self._stopping.wait(0.05)
 
     def poll(self) -> dict[str, int | None]:
@@ -367,6 +432,7 @@ class Launcher:
         self._stopping.set()  # no respawn from here on
         if self._supervisor is not None:
             self._supervisor.join()
+        self._dismiss_standbys()
         try:
             previous: tuple[str, float] | None = None
             stop_started = time.monotonic()
@@ -403,6 +469,25 @@ class Launcher:
         finally:
             for sig, handler in ignored.items():
                 signal.signal(sig, handler)
+
+    def _dismiss_standbys(self) -> None:
+        """A standby ends at the end of its stdin (cli.cmd_run); SIGKILL for one that does not."""
+        standbys, self.standbys = self.standbys, {}
+        for proc in standbys.values():
+            try:
+                assert proc.stdin is not None
+                proc.stdin.close()
+            except (OSError, ValueError):
+                pass
+        for proc in standbys.values():
+            try:
+                proc.wait(2.0)
+            except subprocess.TimeoutExpired:
+                try:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                proc.wait()
 
     def failed(self, codes: dict[str, int | None] | None = None) -> dict[str, int | None]:
         """Nodes that really failed: a non-zero exit that is neither the SIGINT they were sent nor

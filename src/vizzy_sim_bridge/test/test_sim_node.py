@@ -7,6 +7,7 @@ wall-clock time (every test waits for a condition). Images are rendered at reduc
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 from typing import Any
 
 import numpy as np
@@ -21,6 +22,7 @@ from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.core.camera import camera_matrix
 from vizzy_sim_bridge.core.kinematics import (
     BASELINE, JOINT_LIMITS, JOINT_NAMES, frames_in_base, static_transforms)
+from vizzy_sim_bridge.core.urdf import head_urdf
 from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -32,6 +34,7 @@ MarkerArray = message('visualization_msgs/msg/MarkerArray')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 TFMessage = message('tf2_msgs/msg/TFMessage')
 Clock = message('rosgraph_msgs/msg/Clock')
+String = message('std_msgs/msg/String')
 
 TIMEOUT = 30.0
 W, H = 160, 120
@@ -58,6 +61,8 @@ class Listener(Node):
         '/tf_static': (TFMessage, qos_profile_latched),
         '/clock': (Clock, 10),
         '/sim/ground_truth/objects': (MarkerArray, qos_profile_latched),
+        # reliable + transient local, depth 1: what RViz's RobotModel asks for
+        '/robot_description': (String, qos_profile_latched),
     }
 
     def __init__(self, context: Context) -> None:
@@ -164,6 +169,17 @@ def test_tf_static_and_tf_cover_the_whole_head(running) -> None:
     assert list(js.name) == list(JOINT_NAMES) and len(js.position) == 5
     clock = listener.last['/clock'].clock
     assert clock.sec * 10 ** 9 + clock.nanosec > 0
+
+
+def test_robot_description_reaches_a_late_joiner_and_names_the_tf_frames(running) -> None:
+    _, listener, spin = running   # the listener subscribed after the sim had published it
+    urdf = listener.last['/robot_description'].data
+    assert urdf == head_urdf()
+    links = {link.get('name') for link in ET.fromstring(urdf).findall('link')}
+    assert wait_until(lambda: len(listener.last['/tf'].transforms) == 5, TIMEOUT, spin=spin)
+    published = {t.child_frame_id for t in listener.last['/tf_static'].transforms} | {
+        t.child_frame_id for t in listener.last['/tf'].transforms}
+    assert links == published   # every frame below world, and no other
 
 
 def test_ground_truth_objects_have_dimensions_and_axes(running) -> None:

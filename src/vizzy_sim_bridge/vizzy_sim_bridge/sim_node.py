@@ -13,6 +13,10 @@ Publishes (frames and QoS in docs/vizzy_sim_bridge.md):
   /joint_states, /tf                                       every 1/joint_state_rate_hz, and at
                                                            each image's stamp
   /tf_static (latched), /clock
+  /robot_description (std_msgs/String, reliable + transient local, depth 1, once at start-up:
+      late joiners get it, as from robot_state_publisher): the head's URDF, core.urdf.head_urdf(),
+      generated from core/kinematics.py and the MuJoCo model; its links are the frames of /tf and
+      /tf_static below world. RViz's RobotModel and Foxglove's URDF layer read it.
   /diagnostics (diagnostic_msgs/DiagnosticArray, about 1 Hz): this node's input health
   /sim/ground_truth/objects (MarkerArray, latched): every object with its dimensions;
       cylinders also as an axis arrow (ns cylinder_axes)
@@ -59,12 +63,13 @@ from vizzy_runtime.ros import (
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 from vizzy_sim_bridge.core.camera import camera_matrix, project, projection_matrix
 from vizzy_sim_bridge.core.kinematics import (
-    BASELINE, CAMERA_FRAMES, JOINT_LIMITS, JOINT_NAMES, RGBD_FRAME, WAIST_HEIGHT, Transform,
-    frames_in_base, joint_transforms, rotation_matrix, static_transforms)
+    BASELINE, CAMERA_FRAMES, JOINT_LIMITS, JOINT_NAMES, RGBD_FRAME, Transform, frames_in_base,
+    joint_transforms, rotation_matrix, static_transforms, world_transform)
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
 from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
 from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
 from vizzy_sim_bridge.core.scenes import SCENE_NAMES, SceneUnavailable, build_scene
+from vizzy_sim_bridge.core.urdf import head_urdf
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 Clock = message('rosgraph_msgs/msg/Clock')
@@ -79,6 +84,7 @@ TimeMsg = message('builtin_interfaces/msg/Time')
 Track = message('active_vision_msgs/msg/Track')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
+String = message('std_msgs/msg/String')
 
 EYES = ('left', 'right')
 # Relative names: the node's namespace (or remapping) places them; logs print the resolved ones.
@@ -92,6 +98,7 @@ RGBD_INFO_TOPIC = 'vizzy/rgbd/camera_info'
 JOINT_STATES_TOPIC = 'joint_states'
 CLOCK_TOPIC = 'clock'          # nodes with use_sim_time follow /clock: a namespaced graph remaps it
 GROUND_TRUTH_TOPIC = 'sim/ground_truth'
+ROBOT_DESCRIPTION_TOPIC = 'robot_description'   # relative, like robot_state_publisher's
 # Drivers publish sensor data reliable (REP 2003): best-effort and reliable subscribers both match.
 SENSOR_QOS = QoSProfile(depth=5)
 # destroy_node() waits at most this for the render thread's frame in flight (one stereo pair or
@@ -177,6 +184,21 @@ def _float_seq(values: Any) -> Any:
     if USING_REAL_ROS:
         return array.array('d', [float(v) for v in values])
     return np.asarray(values, dtype=np.float64)
+
+
+def transform_messages(transforms: list[Transform], stamp: Any) -> list[Any]:
+    """geometry_msgs/TransformStamped of each kinematics.Transform, stamped stamp: what goes out
+    on /tf and /tf_static."""
+    out = []
+    for t in transforms:
+        msg = TransformStamped(child_frame_id=t.child)
+        msg.header.stamp = stamp
+        msg.header.frame_id = t.parent
+        tr, rot = msg.transform.translation, msg.transform.rotation
+        tr.x, tr.y, tr.z = (float(v) for v in t.translation)
+        rot.x, rot.y, rot.z, rot.w = (float(v) for v in t.rotation)
+        out.append(msg)
+    return out
 
 
 def _fill_pose(pose: Any, position: Any, quaternion: Any) -> None:
@@ -315,6 +337,8 @@ class SimNode(Node):
         self._joint_pub = self.create_publisher(JointState, JOINT_STATES_TOPIC, 10)
         self._tf_pub = self.create_publisher(TFMessage, TF_TOPIC, 100)
         self._tf_static_pub = self.create_publisher(TFMessage, TF_STATIC_TOPIC, qos_profile_latched)
+        self._description_pub = self.create_publisher(String, ROBOT_DESCRIPTION_TOPIC,
+                                                      qos_profile_latched)
         self._clock_pub = (self.create_publisher(Clock, CLOCK_TOPIC, 10)
                            if self._publish_clock else None)
         self._gt_objects_pub = self.create_publisher(
@@ -329,10 +353,10 @@ class SimNode(Node):
         self._command_sub = self.create_subscription(JointState, COMMAND_TOPIC, guarded(
             self, 'failed on a command', self._on_joint_command, topic=self._command_topic), 10)
 
+        self._description_pub.publish(String(data=head_urdf()))
         now = self._now(self._sim.time)
-        world = Transform('world', 'base_link', (0.0, 0.0, WAIST_HEIGHT), (0.0, 0.0, 0.0, 1.0))
-        self._tf_static_pub.publish(TFMessage(transforms=self._transforms(
-            [world] + static_transforms(), now)))
+        self._tf_static_pub.publish(TFMessage(transforms=transform_messages(
+            [world_transform()] + static_transforms(), now)))
         self._publish_ground_truth()
 
         self._sim.start()
@@ -351,7 +375,7 @@ class SimNode(Node):
             f'{self._backend} in its own thread; cameras on '
             f'{", ".join(self._image_pubs[e].topic_name for e in EYES)} (+ camera_info), RGB-D on '
             f'{self._rgbd_points_pub.topic_name}, {self._joint_pub.topic_name}, '
-            f'{self._tf_pub.topic_name}'
+            f'{self._tf_pub.topic_name}, {self._description_pub.topic_name}'
             f'{", " + self._clock_pub.topic_name if self._clock_pub is not None else ""}; '
             f'joint targets on {self._command_sub.topic_name}')
 
@@ -377,18 +401,6 @@ class SimNode(Node):
         info.p = np.ascontiguousarray(projection_matrix(k, baseline_m)).reshape(12)
         return info
 
-    def _transforms(self, transforms: list[Transform], stamp: Any) -> list[Any]:
-        out = []
-        for t in transforms:
-            msg = TransformStamped(child_frame_id=t.child)
-            msg.header.stamp = stamp
-            msg.header.frame_id = t.parent
-            tr, rot = msg.transform.translation, msg.transform.rotation
-            tr.x, tr.y, tr.z = (float(v) for v in t.translation)
-            rot.x, rot.y, rot.z, rot.w = (float(v) for v in t.rotation)
-            out.append(msg)
-        return out
-
     def _publish_joints(self, t: float, position: np.ndarray, velocity: np.ndarray,
                         effort: np.ndarray) -> None:
         """/joint_states and /tf at sim time t, unless already published for that instant."""
@@ -409,7 +421,7 @@ class SimNode(Node):
         joints.effort = _float_seq(effort)
         # from the joint timer or the render thread (see _render_loop)
         publish_from_thread(self, self._joint_pub, joints)
-        publish_from_thread(self, self._tf_pub, TFMessage(transforms=self._transforms(
+        publish_from_thread(self, self._tf_pub, TFMessage(transforms=transform_messages(
             joint_transforms(position.tolist()), stamp)))
 
     def _snapshot(self) -> tuple[float, np.ndarray]:

@@ -205,6 +205,12 @@ def static_transforms() -> list[Transform]:
     ]
 
 
+def world_transform() -> Transform:
+    """world -> base_link (fixed, on /tf_static): the simulator's world, the floor under the
+    waist; the robot's own description starts at base_link."""
+    return Transform('world', 'base_link', (0.0, 0.0, WAIST_HEIGHT), IDENTITY)
+
+
 def transform_matrix(t: Transform) -> np.ndarray:
     """4x4 homogeneous matrix of a Transform (child pose in the parent frame)."""
     m = np.eye(4)
