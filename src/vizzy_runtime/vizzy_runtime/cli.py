@@ -41,6 +41,8 @@ def cmd_run(ns: argparse.Namespace) -> int:
     from .launcher import find_entry_point
     ep = find_entry_point(ns.package, ns.executable)
     main = ep.load()
+    if ns.standby:
+        _prepare_standby(ep.module)
     if ns.standby and not _standby_released():
         # dismissed: nothing to clean up (no DDS yet, no files), and the interpreter's own exit
         # would spend seconds collecting the imported modules (torch) for nothing
@@ -49,6 +51,16 @@ def cmd_run(ns: argparse.Namespace) -> int:
     sys.argv = [ns.executable, *ns.args]
     result = main()
     return int(result or 0)
+
+
+def _prepare_standby(module_name: str) -> None:
+    """What can be done before `go` without joining the network: the runtime's warm-up and the
+    node module's own `standby_prepare()` if it has one (the sim probes its OpenGL backend)."""
+    from .ros import warm_up
+    warm_up()
+    prepare = getattr(sys.modules.get(module_name), 'standby_prepare', None)
+    if callable(prepare):
+        prepare()
 
 
 def _standby_released() -> bool:

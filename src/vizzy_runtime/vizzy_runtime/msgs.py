@@ -249,6 +249,13 @@ def registry() -> _Registry:
         return _registry
 
 
+def loaded_types() -> list[str]:
+    """The message types whose classes exist so far (get_message and what they nest)."""
+    reg = registry()
+    with reg._lock:
+        return list(reg._classes)
+
+
 def get_message(typename: str) -> type:
     """The bundled runtime's class for a message type ('sensor_msgs/msg/Image')."""
     return registry().get_class(typename)

@@ -79,6 +79,14 @@ qos_profile_latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_
                                  history=HistoryPolicy.KEEP_LAST)
 
 
+def warm_up() -> None:
+    """Before a standby waits (cli.cmd_run --standby): what the runtime can prepare for a node's
+    construction without joining the network (bundled: rclpy_compat/warm_up.py; rclpy: nothing)."""
+    if not USING_REAL_ROS:
+        from .rclpy_compat.warm_up import warm_up as _warm_up
+        _warm_up()
+
+
 def message(typename: str) -> Any:
     """The message class for 'pkg/msg/Type' (real generated class, or the bundled runtime's)."""
     parts = typename.replace('.', '/').split('/')
@@ -98,5 +106,5 @@ __all__ = [
     'InvalidHandle', 'InvalidParameterValueException', 'MultiThreadedExecutor', 'Node', 'ParameterException',
     'Parameter', 'ParameterDescriptor', 'ParameterType', 'QoSProfile', 'RCLError', 'ReliabilityPolicy',
     'SetParametersResult', 'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched',
-    'qos_profile_sensor_data', 'qos_profile_system_default', 'rclpy',
+    'qos_profile_sensor_data', 'qos_profile_system_default', 'rclpy', 'warm_up',
 ]

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import array
 import math
+import os
 import sys
 import threading
 import time
@@ -635,6 +636,15 @@ class SimNode(Node):
 
 
 _main = main_for(SimNode)
+
+
+def standby_prepare() -> None:
+    """For a standby (`vizzy run --standby`): probe the OpenGL backend now (a child process,
+    0.8 s on a loaded machine); select_backend caches the answer for the node's construction."""
+    try:
+        select_backend(os.environ.get('MUJOCO_GL', 'auto') or 'auto')
+    except (RendererUnavailable, ValueError):
+        pass   # the node itself says why when it starts
 
 
 def main(args: list[str] | None = None) -> None:
