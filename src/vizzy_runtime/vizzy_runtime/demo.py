@@ -1,10 +1,12 @@
 """`make demo`: run the graph in simulation for a while, record everything to a bag, say what happened.
 
     .venv/bin/python -m vizzy_runtime.demo [--duration 20] [--output bags/demo_<time>]
+                                           [--view-port 8765 | --no-view]
 
 The graph is vizzy_runtime's config/graph.yaml (the one `ros2 launch vizzy_runtime graph.launch.py`
 starts). The bag is a rosbag2 (MCAP) directory; the summary lists each topic's type, count and
-rate, each node's exit status, the perception outputs, and saves a picture of both cameras.
+rate, each node's exit status, the perception outputs, and saves a picture of both cameras and a
+one-page summary (demo_summary.py). Meanwhile the graph is served to Foxglove (live_view.py).
 """
 
 from __future__ import annotations
@@ -150,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--duration', type=float, default=20.0, help='seconds to record (default 20)')
     parser.add_argument('--output', help='bag directory (default bags/demo_<time>)')
     parser.add_argument('--graph', help='graph YAML (default: vizzy_runtime config/graph.yaml)')
+    parser.add_argument('--view-port', type=int, default=8765, metavar='PORT',
+                        help='watch it live in Foxglove on ws://127.0.0.1:PORT (default 8765)')
+    parser.add_argument('--no-view', action='store_true', help='no Foxglove live view')
     ns = parser.parse_args(argv)
     bag_dir = Path(ns.output or REPO / 'bags' / time.strftime('demo_%Y%m%d_%H%M%S'))
     out_dir = REPO / 'demo_output'
@@ -160,8 +165,12 @@ def main(argv: list[str] | None = None) -> int:
     log = open(out_dir / 'launch.log', 'w')
     launcher = Launcher(graph, output=log)
     counts: dict[str, int] = {}
+    view = None
     with stop_on_signals():  # SIGTERM/SIGHUP stop the demo like Ctrl-C: no node left running
         try:
+            if not ns.no_view:
+                from .live_view import start_or_warn
+                view = start_or_warn(ns.view_port)
             launcher.start()
             if not _wait_for_graph(60):
                 print('demo: the graph did not come up within 60 s; see demo_output/launch.log', file=sys.stderr)
@@ -173,6 +182,8 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             codes = launcher.stop()
             log.close()
+            if view is not None:
+                view.stop()
 
     summary = summarize(bag_dir, out_dir)
     print(f'\n== Vizzy demo: {sum(counts.values())} messages on {len(summary["topics"])} topics, bag {bag_dir}'
@@ -192,6 +203,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f'  {name:20} {code}{extra}')
     if summary['picture']:
         print(f'\nboth cameras: {summary["picture"]}')
+    try:
+        from .demo_summary import summarize_bag
+        page = summarize_bag(bag_dir, out_dir / 'summary.png')
+        empty = f' (no data for: {", ".join(page["empty"])})' if page['empty'] else ''
+        print(f'one-page summary: {page["path"]}{empty}')
+    except Exception as err:  # noqa: BLE001 - the page is a nicety; the demo's verdict stands
+        print(f'demo: summary page not written: {type(err).__name__}: {err}', file=sys.stderr)
     print(f'node output: {out_dir / "launch.log"}')
     return 1 if launcher.failed(codes) or not summary['topics'] else 0
 

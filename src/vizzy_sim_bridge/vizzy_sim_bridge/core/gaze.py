@@ -554,7 +554,7 @@ def arbitrate(active: Claim | None, source: str, priority: int, now: float) -> s
 __all__ = [
     'BASE_FRAME', 'Claim', 'FixationSolution', 'GazeError', 'GazeSplit', 'GazeStatus',
     'LEFT_OPTICAL_FRAME', 'MinimumJerk', 'RIGHT_OPTICAL_FRAME', 'arbitrate', 'as_joint_array',
-    'check_finite_point', 'clamp_joint_targets', 'cyclopean_ray', 'fixation_point', 'home_posture',
+    'check_finite_point', 'cyclopean_ray', 'fixation_point', 'home_posture',
     'joint_limits', 'optical_errors', 'pursuit_step', 'saccade_duration', 'solve_fixation',
     'velocity_limits',
 ]
