@@ -201,7 +201,9 @@ def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path
     graph = Graph(nodes=[])
     log = open(tmp_path / 'launch.log', 'w+')
     launcher = Launcher(graph, output=log, grace_s=0.5)
-    stubborn = ('import signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+    # like a node (node_tools.run): stacks on SIGUSR1, which the launcher sends before SIGTERM
+    stubborn = ('import faulthandler, signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+                'faulthandler.register(signal.SIGUSR1, all_threads=True, file=sys.stdout); '
                 'print("ready", flush=True); time.sleep(120)')
     launcher.procs['stubborn'] = subprocess.Popen([sys.executable, '-c', stubborn], stdout=subprocess.PIPE,
                                                   text=True, start_new_session=True)
@@ -214,8 +216,11 @@ def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path
     text = log.read()
     assert codes == {'stubborn': -signal.SIGTERM, 'crashed': 3}
     assert launcher.escalated == {'stubborn': 'SIGTERM after SIGINT'}
-    assert re.search(r'process stubborn \(pid \d+\) still running 0.5 s after SIGINT: sending SIGTERM', text), text
+    assert re.search(r'process stubborn \(pid \d+\) still running 0.5 s after SIGINT \(its threads\' '
+                     r'stacks are above\): sending SIGTERM', text), text
     assert launcher.failed(codes) == {'crashed': 3}
+    stacks = launcher.procs['stubborn'].stdout.read()
+    assert 'most recent call first' in stacks and 'File "<string>", line 1' in stacks, stacks
 
 
 def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):

@@ -446,12 +446,16 @@ class Launcher:
                 alive = {n: p for n, p in self.procs.items() if p.poll() is None}
                 if not alive:
                     break
+                if previous is not None and sig == signal.SIGTERM:
+                    self._dump_stacks(alive)
                 for name, proc in alive.items():
                     if previous is not None:
                         self.escalated[name] = f'{signal.Signals(sig).name} after {previous[0]}'
+                        why = ' (its threads\' stacks are above)' if sig == signal.SIGTERM else ''
                         self.output.write(
                             f'[WARNING] [launch]: process {name} (pid {proc.pid}) still running '
-                            f'{previous[1]:g} s after {previous[0]}: sending {signal.Signals(sig).name}\n')
+                            f'{previous[1]:g} s after {previous[0]}{why}: sending '
+                            f'{signal.Signals(sig).name}\n')
                     try:
                         os.killpg(proc.pid, sig)
                     except ProcessLookupError:
@@ -469,6 +473,17 @@ class Launcher:
         finally:
             for sig, handler in ignored.items():
                 signal.signal(sig, handler)
+
+    def _dump_stacks(self, alive: dict[str, subprocess.Popen[str]]) -> None:
+        """Ask nodes that ignored SIGINT for their threads' stacks (node_tools.run registers
+        faulthandler on SIGUSR1; they go to the node's output, i.e. this log), so the log says
+        where each was stuck."""
+        for proc in alive.values():
+            try:
+                os.kill(proc.pid, signal.SIGUSR1)
+            except ProcessLookupError:
+                pass
+        time.sleep(0.3)
 
     def _dismiss_standbys(self) -> None:
         """A standby ends at the end of its stdin (cli.cmd_run); SIGKILL for one that does not."""

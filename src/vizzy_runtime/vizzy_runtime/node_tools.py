@@ -26,6 +26,7 @@ A node module writes:
 
 from __future__ import annotations
 
+import faulthandler
 import functools
 import gc
 import math
@@ -524,6 +525,7 @@ class LatestWorker:
 
 
 _signals_received: list[int] = []
+STACKS_SIGNAL = signal.SIGUSR1
 
 
 def _on_termination_signal(signum: int, frame: Any) -> None:
@@ -573,6 +575,9 @@ def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
     if main_thread:
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, _on_termination_signal)
+        # SIGUSR1 prints every thread's stack (the launcher sends it to a node that has not
+        # stopped within its grace, before SIGTERM: the log then says where it was stuck)
+        faulthandler.register(STACKS_SIGNAL, all_threads=True)
     node = None
     try:
         rclpy.init(args=args)
