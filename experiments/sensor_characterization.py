@@ -13,8 +13,10 @@ retina of the foveation package (200 rings x 200 wedges, rho_min 1 px).
 
 This is the geometric characterization (the uncertainty that the RF quantization causes, with
 exact correspondences), which is what Fig. 3.8 isolates. A check on synthetic renders runs the
-whole pipeline (each sensor's view, SGBM, UT) on the textured plane for a few (d, theta_v) and
-reports TI of the matched RFs and the fraction matched.
+whole pipeline (each sensor's matcher: SGBM on the 200x200 Cartesian grid, or the log-polar
+sensor's foveated SGBM; UT) on the textured plane for a few (d, theta_v), searching the
+disparities of points 0.2-20 m away (`multires.disparity_window`, as the node does by default),
+and reports TI of the matched RFs and the fraction matched.
 
 Writes experiments/results/sensor_characterization.png and .json.
 
@@ -43,6 +45,7 @@ for _pkg in ('stereo_ses_node', 'foveation_node'):
 from foveation_node.core.logpolar import LogPolarRetina  # noqa: E402
 from stereo_ses_node.core.geometry import pixel_rays, project, vergence_poses  # noqa: E402
 from stereo_ses_node.core.information import information  # noqa: E402
+from stereo_ses_node.core.multires import disparity_window  # noqa: E402
 from stereo_ses_node.core.sensors import RFSensor, cartesian_sensor, logpolar_sensor  # noqa: E402
 from stereo_ses_node.core.stereo import StereoPipeline  # noqa: E402
 from stereo_ses_node.core.synthetic import plane_texture, render_plane  # noqa: E402
@@ -106,8 +109,9 @@ def rendered_check(depths: list[float], quick: bool) -> list[dict]:
             rig = StereoRig.create(K, K, pl, pr)
             left = render_plane(K, pl, W, H, depth, tex)
             right = render_plane(K, pr, W, H, depth, tex)
+            window = disparity_window(K, K, pl, pr, W, H, 0.2, 20.0)
             for name, pipe in pipes.items():
-                fr = pipe.process(left, right, rig)
+                fr = pipe.process(left, right, rig, window)
                 info = information(fr.covs)
                 info = info[np.isfinite(info)]
                 err = np.abs(fr.means[:, 2] - depth)

@@ -24,6 +24,7 @@ setup(
     entry_points={
         'console_scripts': [
             'stereo_ses = stereo_ses_node.node:main',
+            'stereo_file = stereo_ses_node.stereo_file:main',
         ],
     },
 )

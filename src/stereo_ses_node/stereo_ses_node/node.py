@@ -11,9 +11,13 @@ Subscribes
   /gaze/state                     active_vision_msgs/GazeState: nothing is fused while in_saccade
                                   (nor pairs stamped before the last saccade ended)
 
-Per stereo pair (core.stereo.StereoPipeline): the images as the sensor sees them (Cartesian grid
-or log-polar then inverse, section 3.4.2), SGBM, mid-point triangulation (Eq. 3.8) and the
-Unscented Transform (Eqs. 3.9-3.18) in the LEFT camera's optical frame; then
+Per stereo pair (core.stereo.StereoPipeline): SGBM at the resolution the sensor needs (the
+Cartesian RF grid; for the log-polar sensor full resolution in its fovea and coarser pyramid
+levels outward, core.multires.FoveatedSGBM) over the disparities of points at depth_range_m
+(disparity_range 'geometry', from camera_info and tf; or the fixed min/num_disparities),
+narrowed coarse-to-fine; matches off the epipolar line (a verged pair's periphery) dropped;
+mid-point triangulation (Eq. 3.8) and the Unscented Transform (Eqs. 3.9-3.18) in the LEFT
+camera's optical frame; then
 SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
 
   /stereo/points  sensor_msgs/PointCloud2, frame = the left image's frame_id (the left camera
@@ -33,8 +37,8 @@ SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
 
 Processing never blocks the executor: callbacks only store messages; a worker thread takes the
 newest complete pair (older pairs are dropped: newest wins, one in flight) at most max_rate_hz
-times a second, so the node leaves CPU to the rest of the graph (2 Hz log-polar ~ 0.3-0.4 of a
-core on the development machine). Bad input is refused and the ego-sphere stays consistent
+times a second, so the node leaves CPU to the rest of the graph (a 640x480 log-polar pair costs
+about 85 ms of one core, mostly the UT of ~34,000 points; the matching about 13 ms). Bad input is refused and the ego-sphere stays consistent
 (SensoryEgoSphere.fuse validates everything before it changes state; degenerate geometry and NaN
 disparities inside a frame are dropped point by point, StereoFrame.rejected).
 
@@ -75,6 +79,7 @@ from stereo_ses_node.core.decision import (
     ACQUISITIONS, choose_fixation, reachable_cells, reward_statistics)
 from stereo_ses_node.core.information import information, information_from_precision
 from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
+from stereo_ses_node.core.multires import DisparityWindow, disparity_window
 from stereo_ses_node.core.stereo import SGBMParams, StereoFrame, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
 from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
@@ -134,6 +139,7 @@ CELL_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('information',
                        ('sigma_r', '<f4'), ('observations', '<f4')])
 
 SENSORS = ('cartesian', 'logpolar')
+DISPARITY_RANGES = ('geometry', 'fixed')
 BIAS_NAMES = tuple(BIASES) + ('user',)
 
 # The node declares exactly these; each range is the descriptor's, enforced by the middleware.
@@ -142,13 +148,21 @@ PARAMETERS: tuple[Param, ...] = (
           "Retina: 'cartesian' (uniform grid) or 'logpolar' (section 3.3.2).", choices=SENSORS),
     Param('n_rf', 200, 'Receptive fields per side: an n_rf x n_rf grid (cartesian) or n_rf '
           'rings x n_rf wedges (logpolar); thesis 200. In [16, 512].', '[16, 512]'),
+    Param('disparity_range', 'geometry',
+          "Disparities SGBM searches: 'geometry' (those of points at depth_range_m along the left "
+          "camera's rays, from camera_info and tf, for each pair: verged or parallel rigs alike) "
+          "or 'fixed' ([min_disparity, min_disparity + num_disparities)). Either window is first "
+          'narrowed on a coarse pyramid level (the log-polar sensor then level by level).',
+          choices=DISPARITY_RANGES),
+    Param('depth_range_m', [0.3, 20.0], "Nearest and farthest depth [m] searched when "
+          "disparity_range is 'geometry'.", constraints='[near, far] with 0 < near < far'),
     Param('min_disparity', SGBMParams.min_disparity,
-          'Smallest disparity searched [px] (SGBM minDisparity), in [-1024, 1024]. Verging eyes '
-          'see points beyond the fixation at negative disparity; a parallel rectified rig needs '
-          '>= 0.', '[-1024, 1024]'),
+          "Smallest disparity searched [px] when disparity_range is 'fixed' (SGBM minDisparity), "
+          'in [-1024, 1024]. Verging eyes see points beyond the fixation at negative disparity; '
+          'a parallel rectified rig needs >= 0.', '[-1024, 1024]'),
     Param('num_disparities', SGBMParams.num_disparities,
-          'Disparities searched from min_disparity (SGBM numDisparities), a multiple of 16 in '
-          '[16, 1024].', '[16, 1024]', step=16),
+          "Disparities searched from min_disparity when disparity_range is 'fixed' (SGBM "
+          'numDisparities), a multiple of 16 in [16, 1024].', '[16, 1024]', step=16),
     Param('n_cells', 20000, 'Ego-sphere cells N_x, in [100, 200000]; a change resets the '
           'memory.', '[100, 200000]'),
     Param('bias', 'unbiased', "Ego-sphere cell distribution (Table 3.1): 'unbiased', 'top', "
@@ -205,7 +219,7 @@ PIPELINE_PARAMETERS = ('sensor', 'n_rf', 'min_disparity', 'num_disparities', 'ut
                        'ut_kappa')
 SES_PARAMETERS = ('n_cells', 'bias', 'bias_weights', 'bias_means', 'bias_variances', 'seed')
 _LISTS = ('bias_weights', 'bias_means', 'bias_variances', 'fixation_distance_m',
-          'elevation_limits_deg')
+          'elevation_limits_deg', 'depth_range_m')
 
 
 def check_parameter(name: str, value: Any) -> str | None:
@@ -229,6 +243,8 @@ def check_parameter(name: str, value: Any) -> str | None:
         if name == 'fixation_distance_m' and not (len(values) == 2
                                                   and 0.15 <= values[0] < values[1] <= 10.0):
             return 'fixation_distance_m must be [min, max] with 0.15 <= min < max <= 10'
+        if name == 'depth_range_m' and not (len(values) == 2 and 0.0 < values[0] < values[1]):
+            return 'depth_range_m must be [near, far] with 0 < near < far'
     return None
 
 
@@ -574,6 +590,20 @@ class StereoSesNode(Node):
                                    f'{width}x{height} images')
         return pipe
 
+    def _window(self, rig: StereoRig, width: int, height: int) -> DisparityWindow | None:
+        """The disparities to search on this pair (None: the fixed SGBM parameters' range)."""
+        p = self._p
+        if p['disparity_range'] != 'geometry':
+            return None
+        near, far = (float(v) for v in p['depth_range_m'])
+        try:
+            return disparity_window(rig.k_left, rig.k_right, rig.pose_left, rig.pose_right,
+                                    width, height, near, far)
+        except ValueError as exc:
+            self._warn_throttled('window', f'no disparity window from the geometry ({exc}): '
+                                           f'searching the fixed min_disparity/num_disparities')
+            return None
+
     def _process(self, pair: Pair) -> None:
         t0 = time.monotonic()
         with self._lock:
@@ -601,7 +631,7 @@ class StereoSesNode(Node):
             return
         left, right, rig, ego_left = prepared
         pipe = self._pipeline_for(left.shape[1], left.shape[0])
-        frame = pipe.process(left, right, rig)
+        frame = pipe.process(left, right, rig, self._window(rig, left.shape[1], left.shape[0]))
         if frame.means.shape[0] == 0:
             self._skip(pair, NO_CORRESPONDENCES, f'rejected {frame.rejected}')
             return

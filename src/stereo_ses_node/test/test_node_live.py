@@ -131,6 +131,23 @@ def _feed(rig: Rig, ses: Any, executor: Any, left: Any = None, right: Any = None
         rig.image_pubs['left'].publish(left)
         rig.image_pubs['right'].publish(right)
         if wait_until(lambda: ses.pairs_processed >= done, 0.2, spin=executor):
+            return _settled(ses, executor)
+    return False
+
+
+def _settled(ses: Any, executor: Any) -> bool:
+    """Wait until every pair formed so far was handled (processed or replaced), twice 0.1 s
+    apart: a copy _feed re-sent while a slow worker was busy (a loaded machine) must not be
+    fused later, during the next step of a test."""
+    def idle() -> bool:
+        return ses.pairs_processed + ses.pairs_dropped >= ses.pairs_received
+
+    for _ in range(int(TIMEOUT / 0.1)):
+        if not wait_until(idle, TIMEOUT, spin=executor):
+            return False
+        before = ses.pairs_received
+        wait_until(lambda: ses.pairs_received > before, 0.1, spin=executor)
+        if ses.pairs_received == before and idle():
             return True
     return False
 

@@ -32,6 +32,11 @@ def test_parameter_checks() -> None:
         assert refused('min_disparity', 0) is None and refused('num_disparities', 128) is None
         assert refused('num_disparities', 20) and refused('num_disparities', 0)
         assert refused('min_disparity', 2000)
+        # ... or the window comes from the rig and a depth range (the default)
+        assert refused('disparity_range', 'fixed') is None and refused('disparity_range', 'auto')
+        assert refused('depth_range_m', [0.5, 30.0]) is None
+        assert refused('depth_range_m', [2.0, 1.0]) and refused('depth_range_m', [0.0, 1.0])
+        assert refused('depth_range_m', [1.0]) and refused('depth_range_m', [0.5, math.nan])
         assert refused('bias_means', [0.0, 1.0]) and refused('bias_variances', [0.5, 0.5, 0.0])
         assert refused('fixation_distance_m', [0.1, 5.0])
         assert refused('fixation_distance_m', [2.0, 1.0])

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from vizzy_runtime import dds
+from vizzy_runtime import dds, msgs
 from vizzy_runtime.bag import Player
 from vizzy_runtime.launcher import Launcher, load_graph
 from vizzy_runtime.testing import repo_root, wait_until
@@ -25,6 +25,8 @@ OUTPUTS = {   # node -> its main output (one message per input frame, pair or cl
     'mot_planner': ('/mot/tracks', 'active_vision_msgs/msg/TrackArray'),
 }
 BAGS = ('tabletop', 'visual_search', 'pedestrians')
+# what each scene must show beyond "every node answers": (node, list field, at least)
+SHOWS = {'tabletop': ('cylinder_detector', 'cylinders', 1), 'pedestrians': ('mot_planner', 'tracks', 1)}
 
 
 @pytest.mark.parametrize('scene', BAGS)
@@ -36,6 +38,7 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
     readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=100)) for n, (t, ty) in OUTPUTS.items()}
     disc = dds.Discovery()
     got: dict[str, int] = dict.fromkeys(OUTPUTS, 0)
+    kept: dict[str, list[bytes]] = {n: [] for n in OUTPUTS}
     player = Player(bag, rate=0.5)
     played: dict[str, int] = {}
     try:
@@ -48,7 +51,10 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
 
         def answered() -> bool:
             for name, reader in readers.items():
-                got[name] += len(reader.take(100))
+                samples = reader.take(100)
+                got[name] += len(samples)
+                if name in ('cylinder_detector', 'mot_planner'):
+                    kept[name] += [data for data, _ in samples]
             return all(got.values()) and not thread.is_alive()
         wait_until(answered, 90)
         player.stop()
@@ -63,3 +69,7 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
     silent = [n for n, c in got.items() if not c]
     assert not silent, f'{scene}: no output from {silent} (got {got}); log:\n{text[-3000:]}'
     assert launcher.failed(codes) == {}, text[-3000:]
+    if scene in SHOWS:
+        node, field, least = SHOWS[scene]
+        most = max(len(getattr(msgs.deserialize(raw, OUTPUTS[node][1]), field)) for raw in kept[node])
+        assert most >= least, f'{scene}: {node} never reported {field} ({len(kept[node])} messages)'

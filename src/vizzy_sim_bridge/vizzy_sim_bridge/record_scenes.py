@@ -31,26 +31,30 @@ REPO = Path(__file__).resolve().parents[3]
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 
-# scene: (stereo Hz, RGB-D Hz, seconds recorded, initial joints)
+# scene: (stereo Hz, RGB-D Hz, seconds recorded, initial joints). 12 s with four saccades, so that
+# a replay shows tracks forming and the ego-sphere filling; the rates keep each bag near 25 MB.
 PLAN: dict[str, tuple[float, float, float, str]] = {
-    'tabletop': (3.0, 0.5, 4.0, '[0.0, 0.2, 0.15, 0.0, 0.0]'),
-    'visual_search': (2.0, 0.5, 4.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),   # rich texture: ~0.9 MB/image
-    'pedestrians': (3.0, 0.5, 4.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),
+    'tabletop': (1.5, 0.25, 12.0, '[0.0, 0.2, 0.15, 0.0, 0.0]'),
+    'visual_search': (0.75, 0.15, 12.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),   # rich texture: ~0.9 MB/image
+    'pedestrians': (1.5, 0.25, 12.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),
 }
+# Not recorded: the depth image is the organized cloud's z (the cylinder detector reads the cloud).
+EXCLUDE = ('/vizzy/rgbd/depth/image_raw',)
 
 
 def _targets(scene: str) -> list[np.ndarray]:
     """Fixation points (base_link) for the saccades: from the scene's ground truth (seed 0)."""
     from vizzy_sim_bridge.core.scenes import build_scene
-    if scene == 'pedestrians':
-        return [np.array([3.0, 0.8, 0.9]), np.array([3.5, -0.8, 0.8])]   # ahead, at body height
+    if scene == 'pedestrians':   # ahead, at body height, left and right
+        return [np.array(p) for p in ([3.0, 0.8, 0.9], [3.5, -0.8, 0.8], [4.0, 1.2, 0.9],
+                                      [3.0, -0.2, 0.9])]
     objects = build_scene(scene, 0).objects
     if scene == 'visual_search':
         target = next(o for o in objects if o.role == 'target')
-        other = next(o for o in objects if o.kind == 'can' and o.role != 'target')
-        return [np.array(other.position), np.array(target.position)]
+        others = [o for o in objects if o.role != 'target'][:3]
+        return [np.array(o.position) for o in others] + [np.array(target.position)]
     cylinders = [o for o in objects if o.is_cylinder]
-    return [np.array(cylinders[0].position), np.array(cylinders[-1].position)]
+    return [np.array(o.position) for o in cylinders[:4]]
 
 
 def record(scene: str, out: Path, check: bool) -> int:
@@ -101,7 +105,7 @@ def record(scene: str, out: Path, check: bool) -> int:
                   file=sys.stderr)
             return 1
         recorder = subprocess.Popen(VIZZY + ['bag', 'record', '-a', '-o', str(bag), '--duration',
-                                             str(seconds)], env=env)
+                                             str(seconds), '--exclude-topics', *EXCLUDE], env=env)
         spin_for(1.0)
         targets = _targets(scene)
         for k, point in enumerate(targets):

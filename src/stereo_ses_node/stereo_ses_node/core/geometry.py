@@ -16,6 +16,10 @@ perpendicular. With w = c_l - c_r, a = d_l.d_l, b = d_l.d_r, c = d_r.d_r, d = d_
 A pair is invalid when the rays are (nearly) parallel (a c - b^2 ~ 0) or when the point lies
 behind either camera (s <= 0 or t <= 0); invalid entries come back as NaN with a False mask.
 Everything is vectorized over any leading batch shape (points x sigma points).
+
+`fundamental_matrix` / `epipolar_distance`: how far a right-image match lies from the epipolar
+line of its left point; SGBM matches along rows, which a verged pair's epipolar lines follow
+only near the meridians, so the stereo pipeline drops matches farther than an RF spacing.
 """
 
 from __future__ import annotations
@@ -152,3 +156,26 @@ def triangulate_midpoint(uv_left: np.ndarray, uv_right: np.ndarray, k_left: np.n
     pts = np.stack([x, y, z], axis=-1)
     pts[~valid] = np.nan
     return pts, valid
+
+
+def fundamental_matrix(k_left: np.ndarray, k_right: np.ndarray, pose_left: np.ndarray,
+                       pose_right: np.ndarray) -> np.ndarray:
+    """F with x_r^T F x_l = 0 for homogeneous pixels of one point seen by both cameras."""
+    rel = np.linalg.inv(pose_right) @ pose_left          # right <- left
+    r, t = rel[:3, :3], rel[:3, 3]
+    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    return np.linalg.inv(k_right).T @ tx @ r @ np.linalg.inv(k_left)
+
+
+def epipolar_distance(uv_left: np.ndarray, uv_right: np.ndarray, k_left: np.ndarray,
+                      k_right: np.ndarray, pose_left: np.ndarray,
+                      pose_right: np.ndarray) -> np.ndarray:
+    """Distance (px, (N,)) of each right point from the epipolar line of its left point: 0 for a
+    correspondence the rig can produce; a horizontal match on a verged pair drifts off the line
+    away from the horizontal and vertical meridians (vertical disparity)."""
+    f = fundamental_matrix(k_left, k_right, pose_left, pose_right)
+    xl = np.column_stack([uv_left, np.ones(len(uv_left))])
+    xr = np.column_stack([uv_right, np.ones(len(uv_right))])
+    lines = xl @ f.T
+    return np.abs(np.sum(lines * xr, axis=1)) / np.maximum(np.hypot(lines[:, 0], lines[:, 1]),
+                                                           1e-12)

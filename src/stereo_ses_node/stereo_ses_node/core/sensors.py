@@ -75,3 +75,16 @@ def logpolar_sensor(retina: LogPolarRetina) -> RFSensor:
         return iw * rings + ir
 
     return RFSensor('logpolar', retina.width, retina.height, centers, sigmas, index)
+
+
+def fovea_radius(retina: LogPolarRetina) -> float:
+    """Eccentricity (px) inside which the retina's RF lattice is at least as dense as the pixels.
+
+    The RFs of ring i are r_i max(a - 1, 2 pi / wedges) apart (radially and along the ring, the
+    larger; `LogPolarRetina`, Eq. 1.1), so they reach one pixel apart at
+    r = 1 / max(a - 1, 2 pi / wedges): 31.8 px for 200 x 200 RFs on 640x480. Inside, the sensor
+    resolves full resolution (its fovea in this sense; the retina's `rho_min`, 1 px by default, is
+    only the central disc without RFs); beyond, the RF spacing grows linearly and pyramid level l
+    (pixel spacing 2^l) suffices from r = 2^l times this radius on.
+    """
+    return 1.0 / max(retina.growth - 1.0, 2.0 * np.pi / retina.wedges)
