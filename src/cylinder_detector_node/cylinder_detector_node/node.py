@@ -1,6 +1,7 @@
 """The `cylinder_detector` node (thesis chapter 4): cylinders in RGB-D point clouds.
 
-Topic names are relative (in: `points`, `image_raw`; out: `cylinders`, `cylinders/markers`); the
+Topic names are relative (in: `points`, `image_raw`; out: `cylinders`, `cylinders/markers`,
+`cylinders/overlay`); the
 graph remaps the inputs to the RGB-D sensor's, so below are the resolved defaults.
 
 Subscribes the organized PointCloud2 /vizzy/rgbd/points (sensor data QoS; any frame, normally the
@@ -13,10 +14,19 @@ publishes
   /cylinders          active_vision_msgs/CylinderArray, header = the cloud's
   /cylinders/markers  visualization_msgs/MarkerArray: DELETEALL, then one CYLINDER per cylinder
                       (coloured red -> green by confidence) and a TEXT label above it
+  /cylinders/overlay  sensor_msgs/Image rgb8 (if publish_overlay and the cloud's colour image is
+                      there): the cylinders' outlines, axes and sizes projected on that image
+                      (intrinsics fitted to the organized cloud itself, core.overlay), a legend
   /diagnostics        diagnostic_msgs/DiagnosticArray, about 1 Hz: the node's input health (below)
 
-The table's "up" is the RANSAC plane normal turned towards the sensor (the core does it), so the
-Table 4.1 "vertical" biases mean "upright on the table" in any sensor frame.
+Which plane is the table: the highest one below the sensor that is level (within
+up_tolerance_deg of "up") and has objects on it (core.segmentation: not the back wall, not the
+floor under the table). "Up" in the cloud's frame comes from tf: +z of up_frame (base_link,
+against gravity) turned into the cloud's frame, looked up for every cloud (latest transform,
+vizzy_runtime.tf). Without that transform (no tf yet, another tree) or with up_frame empty, up is
+the cloud frame's -y, a camera optical frame's (REP 103), with a throttled warning in the first
+case. The table's "up" for the fit is its plane normal, so the Table 4.1 "vertical" biases mean
+"upright on the table" in any sensor frame.
 
 Image pairing: the last IMAGE_BUFFER images are kept; a cloud takes the one with the nearest
 stamp if it is within image_tolerance_s (the simulator stamps both alike); an image that is no
@@ -52,6 +62,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -60,15 +71,18 @@ import torch
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
 from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylinder, FitParams
+from cylinder_detector_node.core.overlay import draw_cylinders, intrinsics_from_organized
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
-from cylinder_detector_node.core.segmentation import SegmentParams
+from cylinder_detector_node.core.segmentation import CAMERA_UP, SegmentParams
 from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
     EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING, image_refusal, image_to_numpy, pointcloud2_dtype, pointcloud2_to_array)
+    UNSUPPORTED_ENCODING, image_refusal, image_to_numpy, numpy_to_image, pointcloud2_dtype,
+    pointcloud2_to_array)
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
                                       main_for, publish_from_thread, replace_timer)
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
+from vizzy_runtime.tf import TransformBuffer, TransformListener
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 CylinderMsg = message('active_vision_msgs/msg/Cylinder')
@@ -84,6 +98,7 @@ IMAGE_TOPIC = 'image_raw'
 IMAGE_BUFFER = 8
 CYLINDERS_TOPIC = 'cylinders'
 MARKERS_TOPIC = 'cylinders/markers'
+OVERLAY_TOPIC = 'cylinders/overlay'
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 NO_XYZ = 'no xyz fields'
 BAD_FIELDS = 'bad field layout'
@@ -128,12 +143,22 @@ PARAMETERS: tuple[Param, ...] = (
           '[3, 100000].', '[3, 100000]'),
     Param('max_range_m', 3.0, 'Ignore points farther from the sensor [m]; 0 = no limit; in '
           '[0, 100].', '[0, 100]'),
+    Param('up_frame', 'base_link',
+          'Frame whose +z points up (against gravity): tf gives "up" in each cloud\'s frame for '
+          'choosing the table plane; empty, or without that transform: the cloud frame\'s -y '
+          '(a camera optical frame).'),
+    Param('up_tolerance_deg', 60.0,
+          'Largest angle between the table\'s normal and up [deg], in (0, 90): 60 admits a camera '
+          'looking down 60 degrees when up is its -y; with tf a table is within a few degrees.',
+          '(0, 90)'),
     Param('use_classifier', True,
           'Run the pre-attention CNN (section 4.3.2) on each cluster\'s image patch and fit '
           'only the clusters it accepts (needs the matching image on ' + IMAGE_TOPIC + ').'),
     Param('classifier_threshold', 0.5, 'Clusters with P(cylinder) below this are rejected, in '
           '[0, 1].', '[0, 1]'),
     Param('classifier_model', '', 'Classifier weights (.pt); empty = the packaged model.'),
+    Param('publish_overlay', True,
+          f'Publish the cylinders drawn on the colour image on {OVERLAY_TOPIC}.'),
     Param('image_tolerance_s', 0.05,
           'Largest stamp difference between a cloud and its image [s], in [0, 10].', '[0, 10]'),
 )
@@ -158,11 +183,19 @@ def pipeline_params(p: dict[str, Any]) -> tuple[SegmentParams, FitParams]:
     """The core's parameters from the node's."""
     seg = SegmentParams(voxel_size=p['voxel_size_m'], plane_distance=p['plane_distance_m'],
                         cluster_eps=p['cluster_eps_m'], min_cluster_points=p['min_cluster_points'],
-                        max_range=p['max_range_m'] or None)
+                        max_range=p['max_range_m'] or None, up_tolerance_deg=p['up_tolerance_deg'])
     fit = FitParams(method=p['method'], gmm=TABLE_4_1[p['bias']], n_directions=p['n_directions'],
                     radius_min=p['radius_min_m'], radius_max=p['radius_max_m'],
                     min_confidence=p['min_confidence'])
     return seg, fit
+
+
+def up_in_frame(buffer: TransformBuffer, up_frame: str, cloud_frame: str) -> tuple[float, float, float]:
+    """+z of up_frame expressed in cloud_frame (the latest transform); LookupError if tf has no
+    chain between the two frames."""
+    rot = buffer.lookup_transform(up_frame, cloud_frame)[:3, :3]   # cloud -> up_frame
+    up = rot.T @ np.array([0.0, 0.0, 1.0])
+    return tuple(float(v) for v in up / np.linalg.norm(up))       # type: ignore[return-value]
 
 
 class CloudRefused(ValueError):
@@ -317,8 +350,14 @@ class CylinderDetectorNode(Node):
         self.last_classified = False        # whether the last cloud went through the classifier
         self._load_classifier()
 
+        self.tf_buffer = TransformBuffer()     # "up" of each cloud's frame (up_frame's +z)
+        self._tf_listener = TransformListener(self.tf_buffer, self)
+        self.last_up: tuple[float, float, float] | None = None   # up used for the last cloud
+
         self._pub = self.create_publisher(CylinderArray, CYLINDERS_TOPIC, 10)
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, 10)
+        self._overlay_pub = self.create_publisher(Image, OVERLAY_TOPIC, qos_profile_sensor_data)
+        self._intrinsics: dict[tuple[str, tuple[int, ...]], np.ndarray | None] = {}
         # resolved names, for log lines
         self._cloud_topic = self.resolve_topic_name(CLOUD_TOPIC)
         self._image_topic = self.resolve_topic_name(IMAGE_TOPIC)
@@ -439,6 +478,7 @@ class CylinderDetectorNode(Node):
             if classifier is None:
                 self._warn_throttled('image', f'{self._cloud_topic}: detecting without the '
                                               f'classifier: {why}')
+        seg = replace(seg, up=self.cloud_up(msg.header.frame_id))
         det = detect_cylinders(xyz, seg, fit, image=image, classifier=classifier,
                                classifier_threshold=self._p['classifier_threshold'])
         self.last_classified = classifier is not None
@@ -449,9 +489,41 @@ class CylinderDetectorNode(Node):
             self._warn_throttled('pipeline', f'{self._cloud_topic}: no cylinders: '
                                              f'{"; ".join(det.messages)}')
         self._publish(msg.header, det.cylinders, det.probabilities)
+        if self._p['publish_overlay']:
+            self._publish_overlay(msg.header, xyz, image, det.cylinders)
         self.input_health.accept(self._cloud_topic)
         self._report(det, ms, xyz.shape)
         return det
+
+    def _publish_overlay(self, header: Any, xyz: np.ndarray, image: np.ndarray | None,
+                         cylinders: list[FittedCylinder]) -> None:
+        """The cylinders on the cloud's colour image (from the worker thread). The intrinsics are
+        fitted to the organized cloud once per frame and size (they do not change)."""
+        if image is None:
+            image, _why = self.matching_image(header.stamp)
+        if image is None or image.shape[:2] != xyz.shape[:2]:
+            return
+        key = (header.frame_id, xyz.shape)
+        if key not in self._intrinsics:
+            self._intrinsics[key] = intrinsics_from_organized(xyz)
+        k = self._intrinsics[key]
+        if k is None:
+            return
+        publish_from_thread(self, self._overlay_pub,
+                            numpy_to_image(draw_cylinders(image, k, cylinders), 'rgb8', header=header))
+
+    def cloud_up(self, cloud_frame: str) -> tuple[float, float, float]:
+        """Up (against gravity) in cloud_frame: up_frame's +z from tf, else the frame's -y."""
+        up_frame = self._p['up_frame']
+        up = CAMERA_UP
+        if up_frame and cloud_frame:
+            try:
+                up = up_in_frame(self.tf_buffer, up_frame, cloud_frame)
+            except LookupError as exc:
+                self._warn_throttled('up', f'{self._cloud_topic}: taking -y of {cloud_frame!r} as up '
+                                           f'(camera optical frame): {exc}')
+        self.last_up = up
+        return up
 
     def _publish(self, header: Any, cylinders: list[FittedCylinder],
                  probabilities: list[float | None] | None = None) -> None:
@@ -466,12 +538,12 @@ class CylinderDetectorNode(Node):
             return
         self._last_report = now
         times, self._frame_ms = self._frame_ms, []
-        stages = ', '.join(f'{k} {v:.0f}' for k, v in det.timings_ms.items())
+        stages = ', '.join(f'{k} {v:.0f}' for k, v in det.stage_cpu_ms.items())
         found = ', '.join(f'r {100 * c.radius:.1f} cm h {100 * c.height:.1f} cm p {c.confidence:.2f}'
                           for c in det.cylinders) or 'none'
         self.get_logger().info(
             f'{shape[1]}x{shape[0]} clouds in {np.median(times):.0f} ms median, {max(times):.0f} max '
-            f'over {len(times)} (last: {stages} ms): {len(det.cylinders)} cylinder(s) '
+            f'over {len(times)} (last, CPU: {stages} ms): {len(det.cylinders)} cylinder(s) '
             f'({found}), {det.rejected_by_classifier} cluster(s) rejected by the classifier, '
             f'{det.rejected} by Eq. 4.4; {self.frames_processed} clouds '
             f'processed, {self.frames_dropped} dropped while busy')

@@ -105,3 +105,26 @@ def test_images_are_read_as_rgb() -> None:
     stamp = node.CylinderArray().header.stamp
     stamp.sec, stamp.nanosec = 3, 500_000_000
     assert node.stamp_s(stamp) == 3.5
+
+
+def test_up_comes_from_tf_else_the_clouds_minus_y() -> None:
+    from cylinder_detector_node.core.segmentation import CAMERA_UP
+    values = {p.name: p.default for p in node.PARAMETERS}
+    seg, _ = node.pipeline_params({**values, 'up_tolerance_deg': 20.0})
+    assert seg.up_tolerance_deg == 20.0
+    # an optical frame (x right, y down, z forward) pitched 30 degrees down, 1.2 m above base_link
+    level = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])   # columns: x, y, z of cam
+    t = np.radians(30.0)
+    pitch = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(t), -np.sin(t)], [0.0, np.sin(t), np.cos(t)]])
+    pose = np.eye(4)
+    pose[:3, :3] = level @ pitch.T      # forward tilted towards the floor
+    pose[:3, 3] = (0.0, 0.0, 1.2)
+    with node_under_test(node.CylinderDetectorNode) as ros_node:
+        assert ros_node.cloud_up('cam') == CAMERA_UP          # no tf yet: the optical frame's -y
+        ros_node.tf_buffer.set_transform('base_link', 'cam', pose)
+        up = np.array(ros_node.cloud_up('cam'))
+        assert np.allclose(up, [0.0, -np.cos(t), -np.sin(t)], atol=1e-9)   # camera-down plus forward
+        assert np.allclose(ros_node.cloud_up('/cam'), up)
+        assert ros_node.cloud_up('elsewhere') == CAMERA_UP    # not in the tree
+        ros_node._p['up_frame'] = ''                            # no up frame: -y
+        assert ros_node.cloud_up('cam') == CAMERA_UP

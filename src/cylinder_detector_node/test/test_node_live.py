@@ -15,9 +15,11 @@ import pytest
 
 from cylinder_detector_node import node as cyl_node
 from cylinder_detector_node.core.scene import make_tabletop
-from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
+from cylinder_detector_node.core.overlay import CYLINDER_COLOUR
+from vizzy_runtime.convert import array_to_pointcloud2, image_to_numpy, numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_system_default
+from vizzy_runtime.ros import (Context, Node, Parameter, message, qos_profile_sensor_data,
+                               qos_profile_system_default)
 from vizzy_runtime.testing import publish_until, reported_status, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -49,6 +51,9 @@ class Camera(Node):
         self.create_subscription(CylinderArray, detector._pub.topic_name, self.arrays.append, 10)
         self.create_subscription(MarkerArray, detector._marker_pub.topic_name,
                                  self.markers.append, 10)
+        self.overlays: list[Any] = []
+        self.create_subscription(Image, detector._overlay_pub.topic_name, self.overlays.append,
+                                 qos_profile_sensor_data)
 
 
 @pytest.fixture
@@ -129,6 +134,21 @@ def test_two_upright_cylinders_on_a_table(graph) -> None:
         assert m.scale.x == pytest.approx(2 * c.radius) and m.scale.z == pytest.approx(c.height)
     assert sum(m.type == Marker.TEXT_VIEW_FACING for m in markers) == 2
     assert detector.frames_processed >= 1
+
+
+def test_the_overlay_draws_the_cylinders_on_the_colour_image(graph) -> None:
+    camera, detector, executor = graph
+    detector.set_parameters([Parameter('use_classifier', value=False)])
+    scene = make_tabletop(np.random.default_rng(3), n_cylinders=2, n_distractors=0)
+    grey = _image_msg(np.full((480, 640, 3), 128, np.uint8), 43)
+    stamped = lambda m: m.header.stamp.sec == 43   # noqa: E731
+    assert _send_until(camera, executor, _cloud_message(scene.cloud, 43),
+                       lambda: any(map(stamped, camera.overlays)), image=grey)
+    overlay = next(m for m in camera.overlays if stamped(m))
+    assert (overlay.encoding, overlay.height, overlay.width) == ('rgb8', 480, 640)
+    assert overlay.header.frame_id == FRAME
+    drawn = (image_to_numpy(overlay) == np.array(CYLINDER_COLOUR, np.uint8)).all(axis=-1)
+    assert drawn.sum() > 100   # two outlines, not a stray pixel
 
 
 def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capfd) -> None:

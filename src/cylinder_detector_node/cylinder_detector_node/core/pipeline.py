@@ -4,7 +4,9 @@ Each cluster's image patch goes through the pre-attention CNN (section 4.3.2) wh
 a classifier are given; clusters it rejects are not fitted (the thesis's speed and precision
 argument). The others are fitted in the table frame (table normal = +z), so the vertical biases
 of Table 4.1 mean "upright on the table"; results are returned in the cloud's frame. The time of
-each stage is kept (segmentation, classification, identification: the rows of Table 4.2).
+each stage is kept (segmentation, classification, identification: the rows of Table 4.2), wall and
+process CPU time, and the CPU and wall time of each step (downsample, plane, clusters,
+classification, fitting, total) in stage_cpu_ms and stage_wall_ms.
 """
 
 from __future__ import annotations
@@ -34,6 +36,11 @@ class Detection:
     messages: list[str] = field(default_factory=list)
     timings_ms: dict[str, float] = field(default_factory=dict)   #: segmentation, classification, identification (wall)
     cpu_ms: dict[str, float] = field(default_factory=dict)       #: the same stages in process CPU time
+    #: process CPU time of each step: downsample, plane, clusters (the segmentation), classification
+    #: (0 when no classifier ran), fitting, total
+    stage_cpu_ms: dict[str, float] = field(default_factory=dict)
+    stage_wall_ms: dict[str, float] = field(default_factory=dict)   #: the same steps, wall clock
+    planes: list[dict[str, Any]] = field(default_factory=list)   #: the segmentation's candidate planes
     all_clusters: list[Cluster] = field(default_factory=list)    #: every segmented cluster
     cluster_probabilities: list[float | None] = field(default_factory=list)   #: P(cylinder) of each of all_clusters
 
@@ -51,6 +58,14 @@ def image_problem(image: Any, cloud_shape: tuple[int, ...]) -> str | None:
     return None
 
 
+def _totals(out: Detection, t0: float, c0: float) -> None:
+    """Fill in fitting (= identification) and total of the per-step times."""
+    out.stage_wall_ms['fitting'] = out.timings_ms['identification']
+    out.stage_cpu_ms['fitting'] = out.cpu_ms['identification']
+    out.stage_wall_ms['total'] = 1e3 * (time.perf_counter() - t0)
+    out.stage_cpu_ms['total'] = 1e3 * (time.process_time() - c0)
+
+
 def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitParams | None = None,
                      intrinsics: tuple[float, float, float, float] | None = None,
                      image_size: tuple[int, int] = (640, 480), image: NDArray[np.uint8] | None = None,
@@ -64,8 +79,10 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
     s = segment_tabletop(points, seg, intrinsics, image_size)
     t1, c1 = time.perf_counter(), time.process_time()
     out = Detection(plane=s.plane, messages=list(s.messages), n_clusters=len(s.clusters),
-                    all_clusters=list(s.clusters))
+                    all_clusters=list(s.clusters), planes=s.planes)
     out.timings_ms['segmentation'], out.cpu_ms['segmentation'] = 1e3 * (t1 - t0), 1e3 * (c1 - c0)
+    out.stage_cpu_ms.update(s.cpu_ms)
+    out.stage_wall_ms.update(s.wall_ms)
     probs: list[float | None] = [None] * len(s.clusters)
     if classifier is not None and image is not None and s.clusters:
         problem = image_problem(image, np.shape(points))
@@ -79,8 +96,10 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
     out.cluster_probabilities = probs
     t2, c2 = time.perf_counter(), time.process_time()
     out.timings_ms['classification'], out.cpu_ms['classification'] = 1e3 * (t2 - t1), 1e3 * (c2 - c1)
+    out.stage_wall_ms['classification'], out.stage_cpu_ms['classification'] = 1e3 * (t2 - t1), 1e3 * (c2 - c1)
     if s.plane is None or not s.clusters:
         out.timings_ms['identification'] = out.cpu_ms['identification'] = 0.0
+        _totals(out, t0, c0)
         return out
     rot = rotation_to_z(s.plane[:3])          # cloud frame -> table frame (normal to +z)
     directions = make_directions(fit)
@@ -105,6 +124,7 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
         out.probabilities.append(prob)
     out.timings_ms['identification'] = 1e3 * (time.perf_counter() - t2)
     out.cpu_ms['identification'] = 1e3 * (time.process_time() - c2)
+    _totals(out, t0, c0)
     if out.rejected_by_classifier:
         out.messages.append(f'{out.rejected_by_classifier} cluster(s) below classifier probability '
                             f'{classifier_threshold}: not cylinders (not fitted)')
