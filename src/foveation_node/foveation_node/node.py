@@ -40,6 +40,10 @@ fixation and at each pass-1 box centre, and publishes
 
   /foveation/detections        active_vision_msgs/FoveatedDetectionArray, one per pass
                                (pass_index 0, then 1), the frame's header
+  /foveation/overlay           sensor_msgs/Image rgb8 (if publish_overlay), the frame foveated at
+                               its fixation with both passes' boxes, labels and scores (one colour
+                               per pass), the fixation and the fovea (radius f0), a legend
+                               (core.overlay), the frame's header
 
 and, with saccades_enabled, a GazeCommand on /gaze/command (MODE_FIXATION_POINT,
 MOTION_SACCADE, source 'foveation', priority 30, hold_time saccade_hold_time_s) toward the
@@ -51,6 +55,8 @@ saccade_min_offset_px of the principal point. model_path / labels_path: a TorchS
 its labels (package://foveation_node/... means inside the installed package; an empty
 model_path disables recognition); a path that is no file is refused like any bad parameter value
 (at start-up: one line and exit 2); a file that does not load is logged and recognition stays off.
+The default model knows the simulator's 7 object classes; for real scenes, point model_path /
+labels_path at an ImageNet network written by export_imagenet_classifier (EfficientNet-Lite).
 Algorithms live in foveation_node.core; this module only wires them to topics and parameters.
 """
 
@@ -68,6 +74,7 @@ import numpy as np
 
 from foveation_node.core.foveation import DEFAULT_F0, DEFAULT_LEVELS, PYRAMID_SIGMA_1, Foveator
 from foveation_node.core.image_checks import check_fixation
+from foveation_node.core.overlay import Box, draw_overlay
 from foveation_node.core.recognition import (
     DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
     back_project, saccade_target, two_pass)
@@ -95,6 +102,7 @@ GAZE_STATE_TOPIC = 'gaze/state'
 OUTPUT_TOPIC = '~/image'
 COMPRESSED_TOPIC = '~/image/compressed'
 DETECTIONS_TOPIC = '~/detections'
+OVERLAY_TOPIC = '~/overlay'
 GAZE_COMMAND_TOPIC = 'gaze/command'
 GAZE_SOURCE = 'foveation'
 GAZE_PRIORITY = 30          # saccades: above stereo_ses (20) and mot_planner (10)
@@ -130,6 +138,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param('suppress_during_saccades', True,
           f'Drop frames while {GAZE_STATE_TOPIC} says in_saccade (saccadic suppression).'),
     Param('jpeg_quality', 90, f'JPEG quality of {COMPRESSED_TOPIC}, in [1, 100].', '[1, 100]'),
+    Param('publish_overlay', True, f'Publish each recognised frame, foveated, with both passes\' '
+          f'boxes, the fixation and the fovea drawn on it, on {OVERLAY_TOPIC}.'),
     Param('max_width', 4096, 'Widest accepted input image [px], in [1, 16384]; wider are '
           'dropped.', '[1, 16384]'),
     Param('max_height', 4096, 'Tallest accepted input image [px], in [1, 16384]; taller are '
@@ -296,6 +306,7 @@ class FoveationNode(Node):
         self.last_recognition_ms: float | None = None
         self.saccades_sent = 0
         self._det_pub = self.create_publisher(FoveatedDetectionArray, DETECTIONS_TOPIC, 10)
+        self._overlay_pub = self.create_publisher(Image, OVERLAY_TOPIC, qos_profile_sensor_data)
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         self._load_classifier()
         recognise = guarded(self, 'recognition failed on a frame', self.recognise)
@@ -453,6 +464,13 @@ class FoveationNode(Node):
         for detections in (result.first, result.second):
             publish_from_thread(self, self._det_pub,
                                 self._detection_array(msg.header, fixation, detections))
+        if self._p['publish_overlay']:
+            boxes = [Box(d.box[0], d.box[1], d.box[2] - d.box[0] + 1, d.box[3] - d.box[1] + 1,
+                         d.label, d.score, d.pass_index) for d in (*result.first, *result.second)]
+            drawn = draw_overlay(foveator.foveate(rgb, fixation), boxes, fixation,
+                                 float(self._p['f0']))
+            publish_from_thread(self, self._overlay_pub,
+                                numpy_to_image(drawn, 'rgb8', header=msg.header))
         self.recognitions += 1
         self.last_result = result
         self._maybe_saccade(result.second, msg.header.frame_id, epoch, width, height)

@@ -14,8 +14,10 @@ import numpy as np
 import pytest
 
 from foveation_node import node as fov_node
-from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_system_default
+from foveation_node.core.overlay import FIXATION_COLOUR, PASS_COLOURS
+from vizzy_runtime.convert import image_to_numpy, numpy_to_image
+from vizzy_runtime.ros import (Context, Node, Parameter, message, qos_profile_sensor_data,
+                               qos_profile_system_default)
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -50,6 +52,9 @@ class Camera(Node):
                                  self.detections.append, 10)
         self.create_subscription(GazeCommand, foveation._gaze_pub.topic_name,
                                  self.commands.append, 10)
+        self.overlays: list[Any] = []
+        self.create_subscription(Image, foveation._overlay_pub.topic_name, self.overlays.append,
+                                 qos_profile_sensor_data)
 
 
 def _camera_info() -> Any:
@@ -124,6 +129,21 @@ def test_detections_per_pass_and_a_saccade_to_the_object(graph) -> None:
     u = FX * p[0] / p[2] + (WIDTH - 1) / 2
     v = FX * p[1] / p[2] + (HEIGHT - 1) / 2
     assert math.hypot(u - PATCH[0], v - PATCH[1]) < 20
+
+
+def test_the_overlay_shows_both_passes_fixation_and_fovea(graph) -> None:
+    camera, foveation, executor = graph
+    assert _send_until(camera, executor, _image_msg(), lambda: bool(camera.overlays))
+    overlay = camera.overlays[0]
+    assert (overlay.encoding, overlay.width, overlay.height) == ('rgb8', WIDTH, HEIGHT)
+    assert overlay.header.frame_id == FRAME and overlay.header.stamp.sec == 7
+    pixels = image_to_numpy(overlay)
+    for colour in (*PASS_COLOURS.values(), FIXATION_COLOUR):
+        assert (pixels == np.array(colour, np.uint8)).all(axis=-1).any(), colour
+    # the fovea's circle (radius f0 = 30) around the fixation, the image centre
+    u, v = round((WIDTH - 1) / 2 + 30), round((HEIGHT - 1) / 2)
+    ring = pixels[v - 2:v + 3, u - 2:u + 3]
+    assert (ring == np.array(FIXATION_COLOUR, np.uint8)).all(axis=-1).any()
 
 
 def test_no_saccade_from_a_stale_frame_or_when_disabled(graph) -> None:

@@ -3,7 +3,8 @@ types so that it stays valid for the app.
 
     python -m vizzy_runtime.foxglove_layout [-o config/foxglove_layout.json]
 
-Left: both cameras, the foveated image and the tracker's overlay. Middle: a 3D view in base_link with
+Left: both cameras, the foveation overlay (detections of both passes, fixation, fovea), the
+tracker's overlay, the cylinders on the RGB-D image and the foveated stream. Middle: a 3D view in base_link with
 the head model (robot_description), tf, the stereo points and the ego-sphere cells coloured by
 information (-log|Sigma|, Eq. 3.45), the cylinders and the simulator's ground-truth objects. Right:
 the gaze state over time (version, vergence, tilt; saccades), diagnostics and the log.
@@ -23,8 +24,10 @@ FIXED_FRAME = 'base_link'
 LAYOUT_FILE = Path(__file__).resolve().parent.parent / 'config' / 'foxglove_layout.json'
 
 IMAGES = (('/vizzy/left/image_raw', 'Left camera'), ('/vizzy/right/image_raw', 'Right camera'),
-          ('/foveation/image', 'Foveated image (log-polar, back-projected)'),
-          ('/mot/overlay', 'Tracks and attention regions'))
+          ('/foveation/overlay', 'Foveated image: detections by pass, fixation, fovea'),
+          ('/mot/overlay', 'Tracks and attention regions'),
+          ('/cylinders/overlay', 'Cylinders on the RGB-D image'),
+          ('/foveation/image', 'Foveated stream'))
 GAZE_SERIES = (('/gaze/state.version', 'version [rad]'), ('/gaze/state.vergence', 'vergence [rad]'),
                ('/gaze/state.tilt', 'tilt [rad]'), ('/gaze/state.in_saccade', 'in saccade'))
 
@@ -56,9 +59,8 @@ def scene() -> fl.ThreeDeePanel:
 def layout() -> fl.Layout:
     images = fl.SplitContainer(direction='column', items=[
         fl.SplitItem(content=fl.SplitContainer(direction='row', items=[
-            fl.SplitItem(content=_image(*IMAGES[0])), fl.SplitItem(content=_image(*IMAGES[1]))])),
-        fl.SplitItem(content=fl.SplitContainer(direction='row', items=[
-            fl.SplitItem(content=_image(*IMAGES[2])), fl.SplitItem(content=_image(*IMAGES[3]))])),
+            fl.SplitItem(content=_image(*IMAGES[i])), fl.SplitItem(content=_image(*IMAGES[i + 1]))]))
+        for i in range(0, len(IMAGES), 2)
     ])
     gaze = fl.PlotPanel(title='Gaze state', config=fl.PlotConfig(
         paths=[fl.PlotSeries(value=value, label=label) for value, label in GAZE_SERIES]))

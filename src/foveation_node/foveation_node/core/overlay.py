@@ -13,17 +13,18 @@ from typing import Sequence
 import cv2
 import numpy as np
 
-# RGB colours (the overlay is rgb8)
-PASS_COLOURS: dict[int, tuple[int, int, int]] = {1: (40, 220, 40), 2: (255, 150, 0)}
+# RGB colours (the overlay is rgb8), by FoveatedDetection.pass_index (0: pass 1, 1: pass 2)
+PASS_COLOURS: dict[int, tuple[int, int, int]] = {0: (40, 220, 40), 1: (255, 150, 0)}
 FIXATION_COLOUR = (0, 200, 255)
-LEGEND = ((PASS_COLOURS[1], 'pass 1 detection'), (PASS_COLOURS[2], 'pass 2 (after saccade)'),
+LEGEND = ((PASS_COLOURS[0], 'pass 1 detection'), (PASS_COLOURS[1], 'pass 2 (fixating the box)'),
           (FIXATION_COLOUR, 'fixation + fovea (f0)'))
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 @dataclass(frozen=True)
 class Box:
-    """A detection to draw: pixel box (x, y, w, h) in the image, label, score in [0, 1], pass."""
+    """A detection to draw: pixel box (x, y, w, h) in the image, label, score in [0, 1], and
+    pass_index as FoveatedDetection has it (0: the first pass, 1: the second)."""
 
     x: float
     y: float
@@ -31,7 +32,7 @@ class Box:
     h: float
     label: str
     score: float
-    pass_index: int = 1
+    pass_index: int = 0
 
 
 def _scale(image: np.ndarray) -> float:
@@ -46,7 +47,7 @@ def draw_overlay(image: np.ndarray, boxes: Sequence[Box], fixation: tuple[float,
     thick = max(1, int(round(2 * s)))
     h, w = out.shape[:2]
     for b in boxes:
-        colour = PASS_COLOURS.get(int(b.pass_index), PASS_COLOURS[2])
+        colour = PASS_COLOURS.get(int(b.pass_index), PASS_COLOURS[1])
         x0, y0 = int(round(b.x)), int(round(b.y))
         x1, y1 = int(round(b.x + b.w)), int(round(b.y + b.h))
         cv2.rectangle(out, (x0, y0), (x1, y1), colour, thick)
