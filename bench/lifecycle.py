@@ -7,7 +7,7 @@ a standby per node) with the launcher, waits until every output flows, then, nod
   1. SIGINT to the node's process while it works: seconds until the process has exited
      (issue 12's bound: 2 s);
   2. wait until the respawned process publishes (and, with standbys, until the node's next standby
-     has had --standby-ready seconds for its imports), then SIGKILL it: seconds from the kill until
+     has said it is ready: imports and warm-up done), then SIGKILL it: seconds from the kill until
      its output flows again from the next process. With a standby: the launcher's respawn_delay,
      node construction, the first result; with --cold (no standbys, as ros2 launch respawns):
      also the interpreter's start-up and the imports (torch, Open3D, MuJoCo).
@@ -56,8 +56,6 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--rounds', type=int, default=3)
     parser.add_argument('--cold', action='store_true', help='no standbys: every respawn starts cold')
-    parser.add_argument('--standby-ready', type=float, default=8.0,
-                        help='seconds a new standby gets for its imports before the kill')
     ns = parser.parse_args()
     log = tempfile.NamedTemporaryFile('w+', prefix='vizzy_lifecycle_', suffix='.log', delete=False)
     graph = load_graph(default_graph_file())
@@ -72,15 +70,11 @@ def main() -> int:
     back_s: dict[str, list[float]] = {n: [] for n in OUTPUT}
 
     def standby_ready(name: str) -> bool:
+        """The node's standby has finished its imports and warm-up (it said so)."""
         spare = launcher.standbys.get(name)
         if ns.cold:
             return True
-        if spare is None or spare.poll() is not None:
-            return False
-        born.setdefault(spare.pid, time.monotonic())
-        return time.monotonic() - born[spare.pid] >= ns.standby_ready
-
-    born: dict[int, float] = {}
+        return spare is not None and spare.poll() is None and spare.pid in launcher.ready_standbys
 
     def flowing_from_new(name: str, old: object) -> bool:
         return launcher.procs[name] is not old and launcher.procs[name].poll() is None \

@@ -308,7 +308,7 @@ def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, m
         assert wait_until(lambda: 'gaze_controller' in launcher.standbys, 30)
         spare = launcher.standbys['gaze_controller']
         spares.append(spare)
-        time.sleep(1.0)  # let the spare finish its imports (not needed for correctness)
+        assert wait_until(lambda: spare.pid in launcher.ready_standbys, 60), 'the standby never got ready'
         first = launcher.procs['gaze_controller']
         killed_at = time.monotonic()
         os.killpg(first.pid, signal.SIGKILL)

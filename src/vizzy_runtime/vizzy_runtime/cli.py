@@ -67,8 +67,10 @@ def _standby_released() -> bool:
     """`vizzy run --standby`: the node's modules are imported (the slow part of a start); wait for
     `go` on stdin, then run it (the launcher's respawn_standby). False: stdin ended or a signal
     came first (the launcher dismissed this spare)."""
+    from .launcher import STANDBY_READY
     previous = {sig: signal.signal(sig, lambda *_: sys.exit(0)) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
+        print(STANDBY_READY, flush=True)
         line = sys.stdin.readline()
     except (SystemExit, KeyboardInterrupt):
         return False

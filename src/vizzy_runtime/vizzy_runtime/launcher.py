@@ -30,7 +30,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Callable, TextIO
 
 import yaml
 
@@ -240,10 +240,17 @@ def standby_command(cmd: list[str]) -> list[str]:
     return [*cmd[:i + 1], '--standby', *cmd[i + 1:]]
 
 
-def _pump(prefix: str, stream: TextIO, out: TextIO) -> None:
+# What `vizzy run --standby` prints once its imports and warm-up are done (cli.cmd_run).
+STANDBY_READY = 'standby ready'
+
+
+def _pump(prefix: str, stream: TextIO, out: TextIO,
+          on_line: Callable[[str], None] | None = None) -> None:
     for line in stream:
         out.write(f'{prefix} {line}')
         out.flush()
+        if on_line is not None:
+            on_line(line)
 
 
 class LaunchStopped(KeyboardInterrupt):
@@ -295,6 +302,7 @@ class Launcher:
         self.procs: dict[str, subprocess.Popen[str]] = {}
         # respawn_standby nodes: a spare process per node, imports done, waiting to take over
         self.standbys: dict[str, subprocess.Popen[str]] = {}
+        self.ready_standbys: set[int] = set()   # pids of standbys done importing (STANDBY_READY)
         self.escalated: dict[str, str] = {}  # node -> the signal it needed beyond SIGINT, and why
         self.respawned: dict[str, int] = {}  # node -> times it was started again
         self.stop_seconds: dict[str, float] = {}  # node -> seconds from stop()'s SIGINT to its exit
@@ -325,12 +333,18 @@ class Launcher:
                                             daemon=True)
         self._supervisor.start()
 
-    def _popen(self, name: str, cmd: list[str], **kwargs: Any) -> subprocess.Popen[str]:
+    def _popen(self, name: str, cmd: list[str], standby: bool = False) -> subprocess.Popen[str]:
         index = self._commands[name][2]
         proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, bufsize=1, start_new_session=True, **kwargs)
-        t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output),
-                             daemon=True)
+                                stdin=subprocess.PIPE if standby else None, text=True, bufsize=1,
+                                start_new_session=True)
+
+        def note_ready(line: str) -> None:
+            if line.strip() == STANDBY_READY:
+                self.ready_standbys.add(proc.pid)
+
+        t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output,
+                                                 note_ready if standby else None), daemon=True)
         t.start()
         self._threads.append(t)
         return proc
@@ -368,7 +382,7 @@ class Launcher:
                 or now - self._last_standby_at < self.STANDBY_STAGGER_S:
             return
         self._last_standby_at = now
-        self.standbys[name] = self._popen(name, standby_command(cmd), stdin=subprocess.PIPE)
+        self.standbys[name] = self._popen(name, standby_command(cmd), standby=True)
 
     def _supervise(self) -> None:
         """Report each node's exit; respawn the nodes whose graph entry asks for it (after their
