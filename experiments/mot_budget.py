@@ -13,7 +13,9 @@ tracks start from a full-frame detection on the first frame, none are created la
 ``--new-tracks periodic`` (MOTChallenge and sim) the planner also starts tracks from a
 full-frame detection every 30 frames, charged at the baseline's full-frame detector time (the
 runs share cached full-frame detections), and the baseline from its detections on any frame;
-``detector_ms_planned_frames`` is the planner's time on the other frames.
+``detector_ms_planned_frames`` is the planner's time on the other frames. With
+``--new-tracks budget`` (the deployed configuration, S_max counting ``--area`` pixels) the
+full frames are paid from the S_max budget and come when the savings allow.
 
 - ``--motchallenge DIR``: MOTChallenge sequences (a sequence folder or a folder of them) with
   OpenCV's HOG people detector. The first frame's full-frame detection is computed once per
@@ -54,7 +56,8 @@ from mot_planner_node.core.motchallenge import find_sequences, load_sequence  # 
 from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
 from mot_planner_node.core.simulated import (render, replay_detector_time,  # noqa: E402
                                              track_synthetic)
-from mot_planner_node.core.tracker import MotTracker, TrackerConfig  # noqa: E402
+from mot_planner_node.core.tracker import (DEPLOYED, PROTOCOLS, MotTracker,  # noqa: E402
+                                           TrackerConfig)
 from mot_planner_node.evaluate import read_frame, run_sequence, timing_summary  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / 'results'
@@ -84,7 +87,8 @@ class SharedFullFrames:
 
 def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], trials: int,
                       budget_ms: float, new_tracks: str = 'none',
-                      period: int = 30) -> dict[str, Any]:
+                      period: int = 30, area: str = 'centres') -> dict[str, Any]:
+    protocol = 'deployed' if new_tracks == 'budget' else 'thesis'
     seqs = [load_sequence(p) for p in find_sequences(path)]
     images = {s.name: [read_frame(s, i)[0] for i in range(len(s))] for s in seqs}
     hog = HogDetector()
@@ -97,12 +101,10 @@ def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], tr
         m = summarize({n: r.evaluator for n, r in runs.items()})['OVERALL']
         out = {**m, **timing_summary(list(runs.values()))}
         if cfg.mode == 'planner':
-            # Frames 2..n: planned frames as measured; periodic full frames (births) are
-            # charged at the baseline's full-frame time, since SharedFullFrames answers them
-            # from its cache.
-            periodic = cfg.new_tracks == 'periodic'
-            full = [i > 0 and periodic and i % period == 0 for r in runs.values()
-                    for i in range(len(r.detector_s))]
+            # Frames 2..n: planned frames as measured; full frames after the first (births,
+            # 'periodic' or 'budget') are charged at the baseline's full-frame time, since
+            # SharedFullFrames answers them from its cache.
+            full = [i > 0 and f for r in runs.values() for i, f in enumerate(r.full)]
             first = [i == 0 for r in runs.values() for i in range(len(r.detector_s))]
             det = np.concatenate([r.detector_s for r in runs.values()])
             planned = det[~np.array(full) & ~np.array(first)]
@@ -114,7 +116,10 @@ def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], tr
         return out
 
     print('full-frame baseline ...', file=sys.stderr, flush=True)
-    baseline = run_all(TrackerConfig(mode='full', new_tracks=new_tracks), hog)
+    baseline = run_all(TrackerConfig(mode='full', new_tracks=new_tracks,
+                                     report_misses=PROTOCOLS[protocol]['report_misses'],
+                                     birth_score=PROTOCOLS[protocol]['birth_score'],
+                                     keep_lost=PROTOCOLS[protocol]['keep_lost']), hog)
     full_ms = baseline['detector_ms_after_bootstrap']
     for s in seqs:                      # seed the cache with the full frames of every run
         for i, image in enumerate(images[s.name]):
@@ -124,7 +129,12 @@ def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], tr
     grid = [(k, s, t) for k in k_values for s in s_values for t in range(trials)]
     for k, s, t in tqdm(grid, desc='K_max x S_max x trial', file=sys.stderr):
         cfg = TrackerConfig(mode='planner', new_tracks=new_tracks, full_frame_period=period,
-                            planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t))
+                            birth_share=PROTOCOLS[protocol]['birth_share'],
+                            report_misses=PROTOCOLS[protocol]['report_misses'],
+                            birth_score=PROTOCOLS[protocol]['birth_score'],
+                            keep_lost=PROTOCOLS[protocol]['keep_lost'],
+                            planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t,
+                                                  area=area))
         cells.append({'k_max': k, 's_max': s, 'trial': t, **run_all(cfg, shared, full_ms)})
     return {'sequences': [s.name for s in seqs], 'frames': sum(len(s) for s in seqs),
             'baseline': baseline, 'cells': cells}
@@ -280,12 +290,19 @@ def main() -> None:
     p.add_argument('--seed', type=int, default=0, help='sim scene seed')
     p.add_argument('--cache', type=Path, default=CACHE, help='where sim sequences are rendered')
     p.add_argument('--name', default=None, help='output name (default: data set name)')
-    p.add_argument('--new-tracks', choices=('none', 'periodic'), default='none',
+    p.add_argument('--new-tracks', choices=('none', 'periodic', 'budget'), default='none',
                    help="track births of the planner runs (MOTChallenge and sim): 'none' (the "
-                        "thesis protocol) or 'periodic' (a full frame every 30 frames, whose "
-                        "detector time counts); the full-frame baseline detects everyone on "
-                        "every frame but also starts tracks only on the first")
+                        "thesis protocol), 'periodic' (a full frame every 30 frames, whose "
+                        "detector time counts) or 'budget' (the deployed configuration: full "
+                        "frames paid from the S_max budget); the full-frame baseline detects "
+                        "everyone on every frame and starts tracks as the planner does")
+    p.add_argument('--area', default=None,
+                   help="what S_max counts: 'centres' (thesis), 'pixels' or 'scaled' (default: "
+                        f"'centres', or {DEPLOYED['area']!r} with --new-tracks budget)")
     args = p.parse_args()
+    budgeted = args.new_tracks == 'budget'
+    area = args.area or (DEPLOYED['area'] if budgeted else 'centres')
+    period = DEPLOYED['full_frame_period'] if budgeted else 30
 
     if args.synthetic:
         name = args.name or 'synthetic'
@@ -297,13 +314,13 @@ def main() -> None:
         seq = render_sim_sequence(args.cache, args.seed, args.people, frames, args.fps)
         name = args.name or 'sim_pedestrians'
         result = motchallenge_grid(seq, args.k_max, args.s_max, args.trials, args.budget_ms,
-                                   args.new_tracks)
+                                   args.new_tracks, period, area)
         title = (f'Simulated pedestrians (seed {args.seed}, {args.people} people), {frames} '
                  f'frames at {args.fps:g} fps, HOG, {args.trials} trials')
     else:
         name = args.name or args.motchallenge.resolve().name
         result = motchallenge_grid(args.motchallenge, args.k_max, args.s_max, args.trials,
-                                   args.budget_ms, args.new_tracks)
+                                   args.budget_ms, args.new_tracks, period, area)
         title = (f'{name}: {len(result["sequences"])} sequences, {result["frames"]} frames, '
                  f'HOG, {args.trials} trials')
     rows = aggregate(result)

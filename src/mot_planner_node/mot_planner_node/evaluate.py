@@ -1,6 +1,16 @@
 """Evaluate the resource-constrained tracker on MOTChallenge-format sequences.
 
     evaluate SEQUENCE_OR_FOLDER [...] [--k-max 3] [--s-max 0.1] [--mode both] [...]
+    evaluate SEQ --budget-iterations 200 --seed 0 --no-timing     # reproducible JSON
+    evaluate SEQ --protocol thesis                                # thesis section 5.4
+
+``--protocol deployed`` (default) is the node's configuration: S_max binds the pixels the
+detector reads every frame, and new tracks are born from full-frame detections paid from
+what the tracks leave of the budget (core/tracker.py, ``new_tracks='budget'``).
+``--protocol thesis``: tracks only from the first frame, S_max counting the centre boxes.
+Planning runs for ``--budget-ms`` of wall-clock time per frame (as on the robot: results vary
+run to run) or, with ``--budget-iterations N``, N MCTS runs (same seed and N: same JSON, given
+``--no-timing``, which leaves out the timings).
 
 Each argument is a sequence folder (``img1/``, ``gt/gt.txt``, optionally ``seqinfo.ini``) or a
 folder of them. The tracker runs with the planner (given K_max, S_max) and/or with the
@@ -14,6 +24,16 @@ is always a full-frame detection to start the tracks), ``detector_ms_after_boots
 whole step, detector included) and ``processed_fraction`` (image share the detector read).
 ``detector_speedup`` = full-frame / planner detector time after the bootstrap; ``motp_delta``
 = planner MOTP - full-frame MOTP (percentage points of overlap, thesis Eq. 5.26).
+``detector_cpu_ms_*``: the same in CPU time (all the detector's threads; steadier than wall
+time on a shared machine). The share of the image the detector read, counted as the S_max
+constraint counts it (``--area``; the union of its crops, overlaps once; with ``scaled`` each
+pixel at the resolution the detector reads it, a crop shrunk by its smallest scale s_lo
+costing 1/s_lo^2 per pixel): ``read_fraction_mean``/``_max`` over all frames,
+``read_fraction_max_tracking`` over the frames that were no full frame (at most
+``(1 - birth_share) S_max`` in the deployed protocol), ``read_fraction_mean_after_bootstrap``
+(= ``processed_fraction``), ``full_frames``; per sequence also ``read_fraction_per_frame``.
+``covered_fraction_mean``/``_max_tracking``: the share of the image the crops cover, at any
+resolution (equal to the read fraction unless ``--area scaled``).
 
 A frame that cannot be read or used (missing, corrupt, other size) is reported in
 ``bad_frames``; the tracker predicts through it. A malformed folder or gt file stops with a
@@ -29,7 +49,7 @@ import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence as Seq
+from typing import Any, Callable, NoReturn, Sequence as Seq
 
 import cv2
 import numpy as np
@@ -41,7 +61,8 @@ from .core.metrics import MotEvaluator, summarize
 from .core.motchallenge import MotFolderError, Sequence, find_sequences, load_sequence
 from .core.planner import PlannerConfig
 from .core.regions import AREA_MODES
-from .core.tracker import FrameError, MotTracker, TrackerConfig
+from .core.tracker import (DEPLOYED, NEW_TRACKS, PROTOCOLS, THESIS, FrameError, MotTracker,
+                           TrackerConfig)
 
 MODES = {'planner': 'planner', 'full': 'full_frame'}
 
@@ -55,6 +76,9 @@ class SequenceRun:
     plan_s: list[float] = field(default_factory=list)
     total_s: list[float] = field(default_factory=list)
     processed: list[float] = field(default_factory=list)
+    detector_cpu_s: list[float] = field(default_factory=list)
+    full: list[bool] = field(default_factory=list)
+    covered: list[float] = field(default_factory=list)
     bad_frames: list[dict[str, Any]] = field(default_factory=list)
 
 
@@ -96,6 +120,9 @@ def run_sequence(seq: Sequence, tracker: MotTracker, max_frames: int | None = No
         run.plan_s.append(result.plan_s)
         run.total_s.append(result.total_s)
         run.processed.append(result.processed_fraction)
+        run.detector_cpu_s.append(result.detector_cpu_s)
+        run.full.append(bool(result.full_frame))
+        run.covered.append(result.covered_fraction)
         gt_ids, gt_boxes, distractors = seq.gt.frame(i + 1)
         run.evaluator.update(i + 1, gt_ids, gt_boxes, result.ids, result.boxes, distractors)
     return run
@@ -107,7 +134,9 @@ def timing_summary(runs: Seq[SequenceRun]) -> dict[str, float | None]:
     after = np.concatenate([np.asarray(r.detector_s[1:]) for r in runs]) if runs else np.zeros(0)
     plan = np.concatenate([np.asarray(r.plan_s[1:]) for r in runs]) if runs else np.zeros(0)
     total = np.concatenate([np.asarray(r.total_s) for r in runs]) if runs else np.zeros(0)
-    proc = np.concatenate([np.asarray(r.processed[1:]) for r in runs]) if runs else np.zeros(0)
+    cpu = np.concatenate([np.asarray(r.detector_cpu_s) for r in runs]) if runs else np.zeros(0)
+    cpu_after = (np.concatenate([np.asarray(r.detector_cpu_s[1:]) for r in runs]) if runs
+                 else np.zeros(0))
 
     def ms(a: np.ndarray, f: Callable[[np.ndarray], float]) -> float | None:
         return round(1e3 * float(f(a)), 3) if a.size else None
@@ -115,10 +144,40 @@ def timing_summary(runs: Seq[SequenceRun]) -> dict[str, float | None]:
     return {
         'detector_ms_per_frame': ms(det, np.mean),
         'detector_ms_after_bootstrap': ms(after, np.mean),
+        'detector_cpu_ms_per_frame': ms(cpu, np.mean),
+        'detector_cpu_ms_after_bootstrap': ms(cpu_after, np.mean),
         'plan_ms_mean': ms(plan, np.mean),
         'plan_ms_p95': ms(plan, lambda a: np.percentile(a, 95)),
         'frame_ms': ms(total, np.mean),
-        'processed_fraction': round(float(proc.mean()), 4) if proc.size else None,
+    }
+
+
+TIMING_KEYS = ('detector_ms_per_frame', 'detector_ms_after_bootstrap',
+               'detector_cpu_ms_per_frame', 'detector_cpu_ms_after_bootstrap', 'plan_ms_mean',
+               'plan_ms_p95', 'frame_ms', 'detector_speedup', 'detector_cpu_speedup')
+
+
+def read_summary(runs: Seq[SequenceRun]) -> dict[str, float | int | None]:
+    """The share of the image the detector read (module docstring), deterministic."""
+    proc = np.concatenate([np.asarray(r.processed, float) for r in runs]) if runs else np.zeros(0)
+    after = (np.concatenate([np.asarray(r.processed[1:], float) for r in runs]) if runs
+             else np.zeros(0))
+    full = np.concatenate([np.asarray(r.full, bool) for r in runs]) if runs else np.zeros(0, bool)
+
+    def r4(a: np.ndarray, f: Callable[[np.ndarray], float]) -> float | None:
+        return round(float(f(a)), 4) if a.size else None
+
+    return {
+        'processed_fraction': r4(after, np.mean),
+        'read_fraction_mean': r4(proc, np.mean),
+        'read_fraction_max': r4(proc, np.max),
+        'read_fraction_mean_after_bootstrap': r4(after, np.mean),
+        'read_fraction_max_tracking': r4(proc[~full], np.max),
+        'full_frames': int(full.sum()),
+        'covered_fraction_mean': r4(np.concatenate([np.asarray(r.covered, float) for r in runs])
+                                    if runs else np.zeros(0), np.mean),
+        'covered_fraction_max_tracking': r4(np.concatenate(
+            [np.asarray(r.covered, float) for r in runs])[~full] if runs else np.zeros(0), np.max),
     }
 
 
@@ -136,19 +195,42 @@ def make_detector(spec: str, args: argparse.Namespace) -> Detector:
     return detector
 
 
+def resolve_protocol(args: argparse.Namespace) -> argparse.Namespace:
+    """Fill the options left at None from ``--protocol`` (module docstring)."""
+    base = PROTOCOLS[args.protocol]
+    for name, key in (('new_tracks', 'new_tracks'), ('area', 'area'),
+                      ('period', 'full_frame_period'), ('birth_share', 'birth_share'),
+                      ('report_misses', 'report_misses'), ('birth_score', 'birth_score'),
+                      ('keep_lost', 'keep_lost')):
+        if getattr(args, name, None) is None:
+            setattr(args, name, base[key])
+    return args
+
+
 def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
+    args = resolve_protocol(args)
+    iterations = getattr(args, 'budget_iterations', None)
+    if iterations is not None:             # deterministic: exactly this many MCTS runs
+        budget_ms, max_iterations = None, iterations
+    else:                                  # wall clock, as the node (optionally capped)
+        budget_ms, max_iterations = args.budget_ms, args.iterations
     planner = PlannerConfig(k_max=args.k_max, s_max=args.s_max, area=args.area,
-                            alpha_c=args.alpha_c, alpha_s=args.alpha_s,
-                            budget_ms=args.budget_ms, max_iterations=args.iterations,
-                            seed=args.seed)
+                            alpha_c=args.alpha_c, alpha_s=args.alpha_s, budget_ms=budget_ms,
+                            max_iterations=max_iterations, seed=args.seed)
     return TrackerConfig(mode=mode, new_tracks=args.new_tracks,
-                         full_frame_period=args.period,
+                         full_frame_period=args.period, birth_share=args.birth_share,
+                         birth_score=args.birth_score, keep_lost=args.keep_lost,
+                         report_misses=(None if args.report_misses is None
+                                        or args.report_misses < 0 else args.report_misses),
                          motion=MotionModel(accel_std=args.accel_std), planner=planner)
 
 
 def evaluate(paths: Seq[str | Path], args: argparse.Namespace,
              detector: Detector | None = None) -> dict[str, Any]:
     """Run every mode on every sequence and return the JSON-ready result."""
+    resolve_protocol(args)
+    for mode in ('planner', 'full'):
+        tracker_config(args, mode)               # a bad combination fails before any work
     seq_paths: list[Path] = []
     for p in paths:
         seq_paths += find_sequences(p)
@@ -173,17 +255,33 @@ def evaluate(paths: Seq[str | Path], args: argparse.Namespace,
         metrics = summarize({n: r.evaluator for n, r in runs[mode].items()})
         for name, run in runs[mode].items():
             block = out['sequences'].setdefault(name, {'frames': len(run.detector_s)})
-            block[MODES[mode]] = {**metrics[name], **timing_summary([run])}
+            block[MODES[mode]] = {**metrics[name], **timing_summary([run]), **read_summary([run]),
+                                  'read_fraction_per_frame': [round(float(f), 4)
+                                                              for f in run.processed]}
         out['overall'][MODES[mode]] = {**metrics['OVERALL'],
-                                       **timing_summary(list(runs[mode].values()))}
+                                       **timing_summary(list(runs[mode].values())),
+                                       **read_summary(list(runs[mode].values()))}
     if len(modes) == 2:
         for block in [*out['sequences'].values(), out['overall']]:
             p, f = block['planner'], block['full_frame']
             pd, fd = p['detector_ms_after_bootstrap'], f['detector_ms_after_bootstrap']
             block['detector_speedup'] = (round(fd / pd, 2) if pd and fd else None)
+            pc, fc = p['detector_cpu_ms_after_bootstrap'], f['detector_cpu_ms_after_bootstrap']
+            block['detector_cpu_speedup'] = (round(fc / pc, 2) if pc and fc else None)
             block['motp_delta'] = (round(p['motp'] - f['motp'], 3)
                                    if p['motp'] is not None and f['motp'] is not None else None)
+    if getattr(args, 'no_timing', False):
+        out = without_timing(out)
     return out
+
+
+def without_timing(value: Any) -> Any:
+    """value without the timing keys (at any depth): what is left is reproducible."""
+    if isinstance(value, dict):
+        return {k: without_timing(v) for k, v in value.items() if k not in TIMING_KEYS}
+    if isinstance(value, list):
+        return [without_timing(v) for v in value]
+    return value
 
 
 def finite_or_none(value: Any) -> Any:
@@ -198,41 +296,89 @@ def finite_or_none(value: Any) -> Any:
 
 
 def print_table(result: dict[str, Any]) -> None:
-    cols = ('mota', 'motp', 'idf1', 'num_switches', 'detector_ms_after_bootstrap',
-            'processed_fraction')
+    cols = ('mota', 'motp', 'idf1', 'num_switches', 'detector_cpu_ms_after_bootstrap',
+            'read_fraction_mean', 'read_fraction_max_tracking')
     blocks = [*result['sequences'].items(), ('OVERALL', result['overall'])]
     rows = [(name, mode, block[mode]) for name, block in blocks
             for mode in ('planner', 'full_frame') if mode in block]
     print(f'{"sequence":18s} {"mode":10s} ' + ' '.join(f'{c[:12]:>12s}' for c in cols),
           file=sys.stderr)
     for name, mode, m in rows:
-        cells = ' '.join(f'{m[c]:12.3f}' if isinstance(m[c], (int, float)) else f'{"-":>12s}'
-                         for c in cols)
+        cells = ' '.join(f'{m[c]:12.3f}' if isinstance(m.get(c), (int, float))
+                         else f'{"-":>12s}' for c in cols)
         print(f'{name:18s} {mode:10s} {cells}', file=sys.stderr)
     for problem in result['bad_frames']:
         print(f'bad frame: {problem["sequence"]} {problem["frame"]}: {problem["problem"]}',
               file=sys.stderr)
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose usage errors are one line on stderr (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f'{self.prog}: error: {message} (see --help)\n')
+
+
+class DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows defaults, except None (those options say what they default to)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None:
+            return action.help or ''
+        return super()._get_help_string(action) or ''
+
+
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog='evaluate', description=__doc__.split('\n\n')[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=DefaultsFormatter)
     p.add_argument('paths', nargs='+', help='MOTChallenge sequence folders or folders of them')
     p.add_argument('--mode', choices=('planner', 'full', 'both'), default='both',
                    help='planner, full-frame baseline, or both')
+    p.add_argument('--protocol', choices=tuple(PROTOCOLS), default='deployed',
+                   help="'deployed' (the node's configuration: births paid from the S_max "
+                        "budget, S_max counting the pixels read) or 'thesis' (section 5.4: no "
+                        'births, S_max counting the centre boxes); sets the defaults of '
+                        '--new-tracks, --area, --period, --birth-share, --birth-score, '
+                        '--keep-lost, --report-misses')
     p.add_argument('--k-max', type=int, default=3, help='K_max: regions per frame')
-    p.add_argument('--s-max', type=float, default=0.1, help='S_max: image fraction per frame')
-    p.add_argument('--area', choices=AREA_MODES, default='centres',
-                   help='what S_max counts (docs/mot_planner.md)')
+    p.add_argument('--s-max', type=float, default=0.1,
+                   help="S_max: the share of the image's pixels the detector may read per frame "
+                        '(as --area counts them)')
+    p.add_argument('--area', choices=AREA_MODES, default=None,
+                   help="what S_max counts (docs/mot_planner.md); default: the protocol's "
+                        f"({DEPLOYED['area']} deployed, {THESIS['area']} thesis)")
     p.add_argument('--alpha-c', type=float, default=1.0, help='centre width of a region (Eq. 5.18)')
     p.add_argument('--alpha-s', type=float, default=1.0, help='scale width of a region (Eq. 5.19)')
-    p.add_argument('--budget-ms', type=float, default=10.0, help='planning time per frame')
-    p.add_argument('--iterations', type=int, default=None, help='MCTS iteration cap')
+    p.add_argument('--budget-ms', type=float, default=10.0,
+                   help='wall-clock planning time per frame (as the node)')
+    p.add_argument('--budget-iterations', type=int, default=None,
+                   help='plan with exactly this many MCTS runs per frame instead of --budget-ms '
+                        '(deterministic for a given --seed)')
+    p.add_argument('--iterations', type=int, default=None,
+                   help='MCTS iteration cap on top of --budget-ms')
     p.add_argument('--seed', type=int, default=0, help='MCTS random seed')
-    p.add_argument('--new-tracks', choices=('none', 'periodic', 'sweep'), default='none',
-                   help="track births after the first frame ('none': the thesis protocol)")
-    p.add_argument('--period', type=int, default=30, help='frames between full-frame detections')
+    p.add_argument('--new-tracks', choices=NEW_TRACKS, default=None,
+                   help="track births after the first frame: 'budget' (deployed), 'none' "
+                        "(thesis), 'periodic'/'sweep' (not charged to S_max); default: the "
+                        "protocol's")
+    p.add_argument('--period', type=int, default=None,
+                   help="'budget': fewest frames between full-frame detections; 'periodic': "
+                        f"frames between them (default: {DEPLOYED['full_frame_period']} "
+                        f"deployed, {THESIS['full_frame_period']} thesis)")
+    p.add_argument('--birth-share', type=float, default=None,
+                   help="'budget': share of S_max saved for full-frame detections "
+                        f"(default {DEPLOYED['birth_share']})")
+    p.add_argument('--birth-score', type=float, default=None,
+                   help='tracks are born only from detections scoring at least this (default '
+                        f"{DEPLOYED['birth_score']} deployed, on HOG's SVM margin; any, thesis)")
+    p.add_argument('--keep-lost', type=int, default=None,
+                   help='frames a deleted track is remembered and can come back under its id '
+                        f"(default {DEPLOYED['keep_lost']} deployed, 0 thesis)")
+    p.add_argument('--report-misses', type=int, default=None,
+                   help='report a track while it has at most this many consecutive misses '
+                        f"(-1: always; default {DEPLOYED['report_misses']} deployed, always "
+                        'thesis)')
     p.add_argument('--accel-std', type=float, default=MotionModel().accel_std,
                    help='motion model acceleration std, px/frame^2 at scale 1')
     p.add_argument('--detector', default='hog', help="'hog' or 'package.module:factory'")
@@ -242,6 +388,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--max-frames', type=int, default=None, help='first n frames of each sequence')
     p.add_argument('--output', type=Path, default=None, help='also write the JSON here')
     p.add_argument('--quiet', action='store_true', help='no progress bars or table')
+    p.add_argument('--no-timing', action='store_true',
+                   help='leave the timings out of the JSON (what is left is reproducible with '
+                        '--budget-iterations)')
     return p
 
 

@@ -8,13 +8,17 @@ Subscribes /vizzy/left/image_raw (sensor data QoS, rgb8 or bgr8) and /vizzy/left
 camera's pose, for ego-motion and world-frame gaze). Each image goes through
 core.tracker.MotTracker: predict every belief, plan at most k_max regions covering at most
 s_max of the image with MCTS within budget_ms, run the detector (HOG by default) only in those
-regions (the full frame on the first frame and every full_frame_period frames, where new tracks
-are born), associate and update. It publishes
+regions, associate and update. New tracks are born from full-frame detections paid from the
+S_max budget (core.tracker, new_tracks='budget', the deployed configuration that `evaluate`
+also uses by default): the regions may read (1 - birth_share) S_max of the image per frame,
+the rest is saved, and a full frame is read once the savings pay for it and at least
+full_frame_period frames have passed (and on the first frame). It publishes
 
   /mot/tracks     active_vision_msgs/TrackArray: the confirmed tracks, image header
   /mot/attention  active_vision_msgs/AttentionRegions: the regions processed this frame and
-                  their tracks; a full-frame detection is one image-sized region with
-                  track_id 0 and budget_fraction 1.0
+                  their tracks; budget_fraction is the share of the image the detector read
+                  (union of the regions); a full-frame detection is one image-sized region
+                  with track_id 0 and budget_fraction 1.0
   /mot/overlay    sensor_msgs/Image rgb8 (if publish_overlay): the image with attended regions
                   (yellow; cyan for a full frame) and track boxes with ids (green)
   /gaze/command   active_vision_msgs/GazeCommand, MOTION_PURSUIT at gaze_priority from source
@@ -76,12 +80,11 @@ import numpy as np
 
 from mot_planner_node.core.detector import Detector, HogDetector
 from mot_planner_node.core.egomotion import (OrientationHistory, rotation_between,
-                                             rotation_homography, warp_beliefs)
+                                             rotation_homography)
 from mot_planner_node.core.ground_plane import ConsistencyGate, implied_size
-from mot_planner_node.core.kalman import predict
 from mot_planner_node.core.planner import PlannerConfig
-from mot_planner_node.core.regions import constraint_areas
-from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, TrackerConfig
+from mot_planner_node.core.tracker import (DEPLOYED, FrameError, FrameResult, MotTracker,
+                                           deployed_config)
 from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
     EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
     UNSUPPORTED_ENCODING, ConversionError, image_refusal, image_to_numpy, numpy_to_image)
@@ -125,16 +128,18 @@ WARN_PERIOD_S = 5.0
 PARAMETERS: tuple[Param, ...] = (
     Param('k_max', 3, 'K_max: most search regions processed per frame (section 5.3.4), in '
           '[1, 20].', '[1, 20]'),
-    Param('s_max', 0.1, 'S_max: largest fraction of the image area processed per frame '
-          '(section 5.3.4), in (0, 1].', '(0, 1]'),
+    Param('s_max', 0.1, 'S_max: largest fraction of the image\'s pixels the detector reads per '
+          'frame (section 5.3.4; counted at the resolution it reads them, full frames paid '
+          'from what the regions leave), in (0, 1].', '(0, 1]'),
     Param('alpha_c', 1.0, 'Search-region width in centre stds (Eq. 5.18), in [0, 10].',
           '[0, 10]'),
     Param('alpha_s', 1.0, 'Search-region width in scale stds (Eq. 5.19), in [0, 10].',
           '[0, 10]'),
     Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in (0, 1000].',
           '(0, 1000]'),
-    Param('full_frame_period', 30, 'A full-frame detection (new tracks are born) every this '
-          'many frames, in [1, 100000].', '[1, 100000]'),
+    Param('full_frame_period', DEPLOYED['full_frame_period'], 'Fewest frames between two '
+          'full-frame detections (where new tracks are born; each is paid from the S_max '
+          'budget the regions leave), in [1, 100000].', '[1, 100000]'),
     Param('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in '
           '[-10, 10].', '[-10, 10]'),
     # step 8 from 8: the multiples of 8 (the HOG block stride)
@@ -221,7 +226,7 @@ DETECTOR_FACTORY: Callable[[dict[str, Any]], Detector] = make_hog_detector
 def planner_config(params: dict[str, Any]) -> PlannerConfig:
     return PlannerConfig(k_max=int(params['k_max']), s_max=float(params['s_max']),
                          alpha_c=float(params['alpha_c']), alpha_s=float(params['alpha_s']),
-                         budget_ms=float(params['budget_ms']))
+                         budget_ms=float(params['budget_ms']), area=DEPLOYED['area'])
 
 
 def fixation_ray(u: float, v: float, k: list[float], depth: float) -> tuple[float, float, float]:
@@ -302,9 +307,8 @@ class MotPlannerNode(Node):
     # --- set-up and inputs ------------------------------------------------------------------
 
     def _new_tracker(self) -> MotTracker:
-        cfg = TrackerConfig(new_tracks='periodic',
-                            full_frame_period=int(self._p['full_frame_period']),
-                            planner=planner_config(self._p))
+        cfg = deployed_config(planner_config(self._p),
+                              full_frame_period=int(self._p['full_frame_period']))
         return MotTracker(DETECTOR_FACTORY(dict(self._p)), cfg)
 
     def _person_gate(self) -> ConsistencyGate:
@@ -427,7 +431,6 @@ class MotPlannerNode(Node):
             self._forget_tracks()
             self.resets += 1
         homography, pose = self._ego_homography(msg.header)
-        areas = self._constraint_areas(size, homography)
         try:
             result = tracker.step(bgr, homography=homography)
         except FrameError as exc:
@@ -441,28 +444,13 @@ class MotPlannerNode(Node):
         self._update_bookkeeping(result)
         persons = self._check_persons(msg.header, result, pose)
         self._tracks_pub.publish(self._track_array(msg.header, result, persons))
-        self._attention_pub.publish(self._attention(msg.header, result, areas, size))
+        self._attention_pub.publish(self._attention(msg.header, result, size))
         if self._p['publish_overlay']:
             self._overlay_pub.publish(numpy_to_image(
                 self._overlay(image, msg.encoding, result, persons), 'rgb8', header=msg.header))
         if self._p['publish_gaze']:
             self._send_gaze(msg.header, result, pose, persons)
         self.input_health.accept(self._image_topic)
-
-    def _constraint_areas(self, size: tuple[int, int],
-                          homography: np.ndarray | None) -> dict[int, float]:
-        """Track id -> the area the S_max constraint charges for its region this frame."""
-        t = self._tracker
-        if not len(t.tracks) or t.image_size is None:
-            return {}
-        x, P = t.tracks.x, t.tracks.P
-        if homography is not None:
-            x, P = warp_beliefs(x, P, homography)
-        x, P = predict(x, P, t.cfg.motion)
-        cfg = t.cfg.planner
-        regions = t.planner.regions(x, P, size)
-        areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, size)
-        return {int(i): float(a) for i, a in zip(t.tracks.ids, areas)}
 
     def _update_frame_period(self, stamp: Any) -> None:
         t = _seconds(stamp)
@@ -534,8 +522,7 @@ class MotPlannerNode(Node):
         out.tracks = tracks
         return out
 
-    def _attention(self, header: Any, result: FrameResult, areas: dict[int, float],
-                   size: tuple[int, int]) -> Any:
+    def _attention(self, header: Any, result: FrameResult, size: tuple[int, int]) -> Any:
         width, height = size
         rois, ids = [], []
         for k, reg in enumerate(result.regions):
@@ -545,10 +532,7 @@ class MotPlannerNode(Node):
                                          height=max(y1 - y0, 0)))
             ids.append(0 if result.full_frame or k >= len(result.attended_ids)
                        else int(result.attended_ids[k]))
-        if result.full_frame:
-            fraction = 1.0
-        else:
-            fraction = sum(areas.get(i, 0.0) for i in ids) / float(width * height)
+        fraction = 1.0 if result.full_frame else result.processed_fraction
         cfg = self._tracker.cfg.planner
         return AttentionRegions(header=header, regions=rois, track_ids=ids,
                                 budget_fraction=float(fraction), k_max=int(cfg.k_max),

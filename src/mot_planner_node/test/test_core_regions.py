@@ -30,7 +30,11 @@ def test_region_by_hand() -> None:
     assert region_areas(r[None])[0] == pytest.approx((20 + 134.4) * (20 + 268.8))
     assert centre_areas(x, P, 1.0, SIZE)[0] == pytest.approx(400.0)
     assert constraint_areas(x, P, r[None], 'centres', 1.0, SIZE)[0] == pytest.approx(400.0)
-    assert constraint_areas(x, P, r[None], 'pixels', 1.0, SIZE)[0] == region_areas(r[None])[0]
+    # 'pixels' charges the integer crop the detector reads: x 242..398, y 95..385.
+    assert constraint_areas(x, P, r[None], 'pixels', 1.0, SIZE)[0] == 156 * 290
+    # 'scaled': that crop shrunk by its smallest scale, s_lo = 1.9.
+    assert constraint_areas(x, P, r[None], 'scaled', 1.0, SIZE)[0] == pytest.approx(
+        156 * 290 / 1.9 ** 2)
     with pytest.raises(ValueError, match='area mode'):
         constraint_areas(x, P, r[None], 'other', 1.0, SIZE)
 

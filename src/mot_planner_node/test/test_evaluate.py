@@ -196,3 +196,119 @@ def test_no_target_objects_is_an_error_and_the_json_is_valid(tmp_path: Path, cap
     assert 'no target objects' in capsys.readouterr().err
     assert evaluate.finite_or_none({'a': [float('-inf'), 1.5, float('nan')], 'b': 'x'}) == \
         {'a': [None, 1.5, None], 'b': 'x'}
+
+
+@pytest.mark.parametrize('tail,classes,visibility', [
+    ('', [-1, -1], [1.0, 1.0]),                             # six values
+    (',1', [-1, -1], [1.0, 1.0]),                           # conf
+    (',1,1', [1, 1], [1.0, 1.0]),                           # conf, class
+    (',1,1,0.4', [1, 1], [0.4, 0.4]),                       # MOT16/17/20
+    (',1,-1,-1', [-1, -1], [-1.0, -1.0]),                   # MOT16-style, unused columns -1
+    (',1,-1,-1,-1', [-1, -1], [1.0, 1.0]),                  # MOT15, no world coordinates
+    (',1,3.5,-2.25,0', [-1, -1], [1.0, 1.0]),               # MOT15 with world coordinates
+])
+def test_every_published_gt_layout_keeps_its_boxes(tmp_path: Path, tail, classes,
+                                                   visibility) -> None:
+    rows = [f'1,{i},{b[0]},{b[1]},{b[2]},{b[3]}{tail}' for i, b in ((1, O1), (2, O2))]
+    gt = load_sequence(make_sequence(tmp_path, rows, n_frames=1)).gt
+    assert gt.classes.tolist() == classes and gt.visibility.tolist() == visibility
+    ids, boxes, _ = gt.frame(1)
+    assert ids.tolist() == [1, 2]
+    np.testing.assert_allclose(boxes, [O1, O2])
+
+
+@pytest.mark.parametrize('rows,match', [
+    (['1,1,0,0,10,10,1,1,1,0,0'], 'line 1: 11 values; MOTChallenge ground truth has 6 to 9'),
+    (['1,1,0,0,10,10,1,1,1', '2,1,0,0,10,10,1,-1,-1,-1'], 'line 2: 10 values, but the first row'),
+    (['1,1,0,0,10,10,1,1.5,1'], 'line 1: class must be an integer'),
+    (['1,1,0,0,10,10,1,1,7'], 'line 1: visibility must be in'),
+])
+def test_other_gt_layouts_are_refused_in_one_line(tmp_path: Path, capsys, rows, match) -> None:
+    seq = make_sequence(tmp_path, rows, n_frames=2)
+    with pytest.raises(MotFolderError, match=match):
+        load_sequence(seq)
+    assert evaluate.main([str(seq), '--quiet']) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(seq / 'gt' / 'gt.txt') in err
+
+
+class MovingOracle:
+    """Finds two people walking right at 3 px/frame inside the regions it is given, with a
+    deterministic jitter."""
+
+    geometry = DetectorGeometry()
+    box_shrink = HOG_SHRINK
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def detect(self, image, regions=None) -> Detections:
+        frame = int(image[0, 0, 0]) - 10           # the frame number is painted in pixel (0, 0)
+        self.calls += 1
+        win = WINDOWS.copy()
+        win[:, 0] += 3.0 * frame + np.array([1.0, -1.0]) * (frame % 3)
+        if regions is not None:
+            r = np.asarray(regions)
+            inside = ((r[:, None, 0] <= win[:, 0]) & (win[:, 0] + win[:, 2] <= r[:, None, 2])
+                      & (r[:, None, 1] <= win[:, 1]) & (win[:, 1] + win[:, 3] <= r[:, None, 3]))
+            win = win[inside.any(axis=0)]
+        return Detections(win, np.ones(len(win)))
+
+
+def moving_sequence(root: Path, n_frames: int) -> Path:
+    rows = []
+    for f in range(1, n_frames + 1):
+        for i, w in enumerate(WINDOWS, 1):
+            b = HOG_SHRINK.apply(w[None] + [[3.0 * (f - 1), 0, 0, 0]])[0]
+            rows.append(f'{f},{i},{b[0]:.2f},{b[1]:.2f},{b[2]:.2f},{b[3]:.2f},1,1,1')
+    seq = make_sequence(root, rows, n_frames=n_frames)
+    for f in range(1, n_frames + 1):
+        image = np.full((SIZE[1], SIZE[0], 3), 90, np.uint8)
+        image[0, 0] = 10 + (f - 1)
+        cv2.imwrite(str(seq / 'img1' / f'{f:06d}.png'), image)
+        (seq / 'img1' / f'{f:06d}.jpg').unlink()
+    info = (seq / 'seqinfo.ini').read_text().replace('imExt=.jpg', 'imExt=.png')
+    (seq / 'seqinfo.ini').write_text(info)
+    return seq
+
+
+def test_fixed_seed_and_iterations_give_identical_json(tmp_path: Path, capsys,
+                                                       monkeypatch) -> None:
+    """The deployed protocol is the default; with --budget-iterations the JSON (timings left
+    out) is the same run after run, and the share of each frame read is reported and bound by
+    S_max."""
+    seq = moving_sequence(tmp_path, 24)
+    monkeypatch.setattr(evaluate, 'make_detector', lambda spec, args: MovingOracle())
+    argv = [str(seq), '--quiet', '--budget-iterations', '40', '--seed', '3', '--no-timing',
+            '--s-max', '0.4', '--k-max', '1']
+    outs = []
+    for _ in range(2):
+        assert evaluate.main(argv) == 0
+        outs.append(capsys.readouterr().out.strip().splitlines()[-1])
+    assert outs[0] == outs[1]
+    result = json.loads(outs[0])
+    assert result['config']['protocol'] == 'deployed'
+    assert result['config']['new_tracks'] == 'budget' and result['config']['area'] == 'scaled'
+    assert 'detector_ms_per_frame' not in result['overall']['planner']
+    p = result['overall']['planner']
+    per_frame = result['sequences']['SEQ-01']['planner']['read_fraction_per_frame']
+    assert len(per_frame) == 24 and per_frame[0] == 1.0
+    assert p['read_fraction_max_tracking'] <= 0.85 * 0.4 + 1e-4      # birth_share 0.15
+    assert p['read_fraction_mean'] == pytest.approx(np.mean(per_frame), abs=1e-4)
+    assert p['full_frames'] >= 2                       # births paid from the budget
+    assert p['mota'] > 0.9 and p['num_switches'] == 0
+    # The thesis protocol starts no tracks after the first frame.
+    assert evaluate.main(argv + ['--protocol', 'thesis']) == 0
+    thesis = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert thesis['config']['new_tracks'] == 'none' and thesis['config']['area'] == 'centres'
+    assert thesis['overall']['planner']['full_frames'] == 1
+
+
+def test_bad_options_are_one_line(capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        evaluate.main(['x', '--protocol', 'other'])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and 'invalid choice' in err
+    assert evaluate.main(['.', '--budget-iterations', '0', '--quiet']) == 2
+    assert 'max_iterations' in capsys.readouterr().err

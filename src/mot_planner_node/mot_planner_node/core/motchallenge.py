@@ -1,9 +1,11 @@
 """MOTChallenge sequence folders: ``img1/`` frames, ``gt/gt.txt``, optional ``seqinfo.ini``.
 
-Ground-truth rows are ``frame, id, x, y, w, h[, conf[, class[, visibility]]]`` (MOT16/17 have
-all nine; older sets put -1 in the unused columns). A file whose rows have ten values is MOT15's
-layout, ``frame, id, x, y, w, h, conf, X, Y, Z`` (world coordinates, or -1): it has no class or
-visibility, so its rows are read as class -1 (a target) with visibility 1. What is evaluated
+Ground-truth rows are ``frame, id, x, y, w, h[, conf[, class[, visibility]]]`` (MOT16, MOT17
+and MOT20 have all nine; older sets put -1 in the unused columns). A file whose rows have ten
+values is MOT15's layout, ``frame, id, x, y, w, h, conf, X, Y, Z`` (world coordinates, or -1):
+it has no class or visibility, so its rows are read as class -1 (a target) with visibility 1.
+Every row of a file must have the same number of values, 6 to 10; a class must be an integer
+and a visibility -1 or in [0, 1] (anything else is some other layout, refused). What is evaluated
 follows the MOTChallenge devkit: rows with conf 0 are ignored; with a class column, class 1
 (pedestrian) and -1 (no class) are targets, classes 2, 7, 8, 12 (person on vehicle, static
 person, distractor, reflection) are distractors (a hypothesis that matches one is not counted,
@@ -86,19 +88,27 @@ def read_gt(path: Path, n_frames: int | None = None) -> GroundTruth:
     rows: list[list[float]] = []
     seen: set[tuple[int, int]] = set()
     lines = [ln.strip() for ln in text.splitlines()]
-    widths = {len([f for f in ln.replace(' ', ',').split(',') if f.strip()]) for ln in lines if ln}
-    mot15 = MOT15_WIDTH in widths  # columns 8-10 are world coordinates, not class/visibility
+    split = [[f.strip() for f in ln.replace(' ', ',').split(',') if f.strip()] for ln in lines]
+    width = next((len(f) for f in split if f), 0)
+    mot15 = width == MOT15_WIDTH  # columns 8-10 are world coordinates, not class/visibility
     for lineno, line in enumerate(lines, 1):
         line = line.strip()
         if not line:
             continue
-        fields = [f.strip() for f in line.replace(' ', ',').split(',') if f.strip()]
+        fields = split[lineno - 1]
         where = f'{path} line {lineno}'
         if len(fields) < 6:
             raise MotFolderError(f'{where}: expected at least 6 comma-separated values '
                                  f'(frame, id, x, y, w, h), got {len(fields)}: {line!r}')
+        if len(fields) > MOT15_WIDTH:
+            raise MotFolderError(f'{where}: {len(fields)} values; MOTChallenge ground truth has '
+                                 f'6 to 9 (MOT16/17/20: frame, id, x, y, w, h, conf, class, '
+                                 f'visibility) or 10 (MOT15: ..., conf, X, Y, Z)')
+        if len(fields) != width:
+            raise MotFolderError(f'{where}: {len(fields)} values, but the first row has '
+                                 f'{width}: one layout per file')
         try:
-            vals = [float(v) for v in fields[:9]]
+            vals = [float(v) for v in fields]
         except ValueError:
             raise MotFolderError(f'{where}: not a number in {line!r}') from None
         if not np.all(np.isfinite(vals)):
@@ -118,6 +128,11 @@ def read_gt(path: Path, n_frames: int | None = None) -> GroundTruth:
         if key in seen:
             raise MotFolderError(f'{where}: id {int(tid)} appears twice in frame {int(frame)}')
         seen.add(key)
+        if not mot15 and len(vals) >= 8 and vals[7] != int(vals[7]):
+            raise MotFolderError(f'{where}: class must be an integer, got {fields[7]}')
+        if not mot15 and len(vals) == 9 and vals[8] != -1 and not 0.0 <= vals[8] <= 1.0:
+            raise MotFolderError(f'{where}: visibility must be in [0, 1] (or -1), got '
+                                 f'{fields[8]}')
         if mot15:
             vals = vals[:7] + [-1.0, 1.0]
         vals += [1.0, -1.0, 1.0][len(vals) - 6:]            # conf, class, visibility defaults

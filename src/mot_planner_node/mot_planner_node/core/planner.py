@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from .kalman import MotionModel, logdet_sigma, update_covariance
 from .observation import DetectorGeometry, ObservationModel
-from .regions import (AREA_MODES, centre_areas, constraint_areas, region_areas,
+from .regions import (AREA_MODES, READ_MODES, centre_areas, constraint_areas, read_areas,
                       search_regions)
 
 FloatArray = NDArray[np.float64]
@@ -143,9 +143,12 @@ class BeliefTables:
 
 def belief_tables(x: FloatArray, P: FloatArray, pool: IntArray, motion: MotionModel,
                   observation: ObservationModel, cfg: PlannerConfig,
-                  image_size: tuple[int, int]) -> BeliefTables:
+                  image_size: tuple[int, int],
+                  shrink: FloatArray | None = None) -> BeliefTables:
     """Roll the predicted beliefs (x, P at the current frame) of the pool targets over the
-    horizon for every update history (Eqs. 5.3, 5.18-5.22, 5.24), vectorized."""
+    horizon for every update history (Eqs. 5.3, 5.18-5.22, 5.24), vectorized. shrink (M,):
+    per pool target, the factor on alpha_c, alpha_s its regions are read with (1: as
+    configured; see :meth:`MctsPlanner.fit_regions`)."""
     M, D = len(pool), cfg.depth
     geometry = observation.geometry
     area = np.zeros((M, D, 2 ** (D - 1)))
@@ -161,12 +164,13 @@ def belief_tables(x: FloatArray, P: FloatArray, pool: IntArray, motion: MotionMo
         else:
             xbar = xbar @ f.T
             p_bar = f @ p_post @ f.T + motion.Q(xbar[:, 2])[:, None]
+        k = np.ones((M, 1)) if shrink is None else np.asarray(shrink, float).reshape(M, 1)
         if cfg.area == 'centres':
             area[:, d, :n] = centre_areas(xbar[:, None, :], p_bar, cfg.alpha_c, image_size)
         else:
-            regions = search_regions(xbar[:, None, :], p_bar, geometry, cfg.alpha_c,
-                                     cfg.alpha_s, image_size)
-            area[:, d, :n] = region_areas(regions)
+            regions = search_regions(xbar[:, None, :], p_bar, geometry, cfg.alpha_c * k,
+                                     cfg.alpha_s * k, image_size)
+            area[:, d, :n] = read_areas(regions, cfg.area, image_size)
         entropy[:, d, :n] = 0.5 * logdet_sigma(p_bar)
         s_mean = np.broadcast_to(xbar[:, None, 2], (M, n))
         r_eff = observation.expected_covariance(s_mean, np.sqrt(np.maximum(p_bar[..., 2, 2], 0)),
@@ -230,16 +234,57 @@ class MctsPlanner:
         return search_regions(x, P, self.geometry, self.cfg.alpha_c, self.cfg.alpha_s,
                               image_size)
 
-    def plan(self, x: FloatArray, P: FloatArray, image_size: tuple[int, int]) -> Plan:
+    def reset(self) -> None:
+        """Back to the state after construction (the seed's generator, no reserve)."""
+        self.rng = np.random.default_rng(self.cfg.seed)
+        self.reserve_s = 0.0
+
+    def fit_regions(self, x: FloatArray, P: FloatArray, image_size: tuple[int, int],
+                    budget: float, steps: int = 12) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Regions that fit the budget on their own, for the read modes of the constraint.
+
+        A region whose read area exceeds ``budget`` is narrowed: alpha_c and alpha_s are
+        scaled by the largest factor k in [0, 1] that fits (bisection, vectorized over targets),
+        down to the bare detector window at the predicted centre and scale (k = 0). Returns
+        (regions (K, 6), areas (K,), k (K,)); a target whose bare window does not fit keeps
+        k = 0 and an area above the budget (it cannot be attended)."""
+        cfg, g = self.cfg, self.geometry
+
+        def at(k: FloatArray) -> tuple[FloatArray, FloatArray]:
+            r = search_regions(x, P, g, cfg.alpha_c * k, cfg.alpha_s * k, image_size)
+            return r, read_areas(r, cfg.area, image_size)
+
+        K = x.shape[0]
+        regions, areas = at(np.ones(K))
+        k = np.ones(K)
+        over = areas > budget
+        if over.any():
+            lo, hi = np.zeros(K), np.ones(K)
+            for _ in range(steps):
+                mid = 0.5 * (lo + hi)
+                fits = at(mid)[1] <= budget
+                lo, hi = np.where(fits, mid, lo), np.where(fits, hi, mid)
+            k = np.where(over, lo, 1.0)
+            regions, areas = at(k)
+        return regions, areas, k
+
+    def plan(self, x: FloatArray, P: FloatArray, image_size: tuple[int, int],
+             budget: float | None = None) -> Plan:
         """Choose the regions to attend now, given the predicted beliefs x (K, 6), P (K, 6, 6)
-        of the current frame and the image size (width, height)."""
+        of the current frame and the image size (width, height). budget: the area the
+        regions may take together (default S_max of the image), as ``cfg.area`` counts it."""
         t0 = time.perf_counter()
         cfg = self.cfg
         K = x.shape[0]
-        regions = self.regions(x, P, image_size)
-        areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, image_size)
+        if budget is None:
+            budget = cfg.s_max * float(image_size[0]) * float(image_size[1])
+        shrink = np.ones(K)
+        if cfg.area in READ_MODES:
+            regions, areas, shrink = self.fit_regions(x, P, image_size, budget)
+        else:
+            regions = self.regions(x, P, image_size)
+            areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, image_size)
         action = np.zeros(K, dtype=bool)
-        budget = cfg.s_max * float(image_size[0]) * float(image_size[1])
         attendable = np.flatnonzero(areas <= budget)
         if attendable.size == 0:
             return Plan(action, regions, areas, 0, time.perf_counter() - t0)
@@ -248,7 +293,10 @@ class MctsPlanner:
         if pool.size <= cfg.k_max and areas[pool].sum() <= budget:
             action[pool] = True                  # the only maximal feasible action
             return Plan(action, regions, areas, 0, time.perf_counter() - t0)
-        tables = belief_tables(x, P, pool, self.motion, self.observation, cfg, image_size)
+        tables = belief_tables(x, P, pool, self.motion, self.observation, cfg, image_size,
+                               shrink[pool])
+        if cfg.area in READ_MODES:
+            tables.area[:, 0, 0] = areas[pool]       # now: exactly the fitted regions
         best, iterations, value = self._search(tables, budget, t0)
         action[pool[best]] = True
         plan_s = time.perf_counter() - t0

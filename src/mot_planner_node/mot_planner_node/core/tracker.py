@@ -10,8 +10,15 @@ Track births: the first frame is a full-frame detection and every detection star
 (section 5.4's bootstrap). The thesis created no tracks after that; as its future work
 suggests, ``new_tracks`` can also start them from unmatched detections:
 
+- ``'budget'`` (default, the deployed configuration): S_max binds every frame. The tracks'
+  regions may read at most ``(1 - birth_share) S_max`` of the image per frame (union of the
+  crops, :func:`.regions.read_area`); what a frame leaves of its ``S_max`` is saved, and a
+  full-frame detection (where new people are found) is made when the savings pay for a whole
+  image and at least ``full_frame_period`` frames have passed since the last one. So after
+  the bootstrap frame the pixels read never exceed ``S_max`` times the frames so far, and a
+  frame that is not a full frame never reads more than ``S_max`` of the image.
 - ``'none'``: the thesis protocol (bootstrap only);
-- ``'periodic'``: a full-frame detection every ``full_frame_period`` frames;
+- ``'periodic'``: a full-frame detection every ``full_frame_period`` frames (not charged);
 - ``'sweep'``: each frame also scans one vertical strip of the image (``sweep_fraction`` of
   its width, plus one window width of overlap), cycling over the image; its area counts in
   the detector time.
@@ -45,12 +52,15 @@ from .detector import Detections, Detector, box_iou, check_image
 from .egomotion import warp_beliefs
 from .kalman import STATE_DIM, MotionModel, predict, update
 from .observation import ObservationModel
-from .planner import MctsPlanner, PlannerConfig
-from .regions import full_frame_region, region_areas
+from .planner import MctsPlanner, Plan, PlannerConfig
+from .regions import READ_MODES, full_frame_region, read_area
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
+
+
+NEW_TRACKS = ('budget', 'none', 'periodic', 'sweep')
 
 
 class FrameError(ValueError):
@@ -63,9 +73,18 @@ class TrackerConfig:
 
     mode: 'planner' (attend the planned regions) or 'full' (detector on every full frame:
         the baseline).
-    new_tracks, full_frame_period, sweep_fraction: track births (module docstring).
+    new_tracks, full_frame_period, sweep_fraction, birth_share: track births (module
+        docstring).
     confirm_hits: detections a track born after the bootstrap needs before it is reported.
     max_misses: most consecutive misses (in processed frames) a track survives.
+    birth_score: a track is born only from a detection scoring at least this (the detector's
+        score; -inf: any); weaker detections still update tracks.
+    keep_lost: a confirmed track deleted inside the image (misses, or lost) is remembered and
+        predicted for this many frames; a detection no live track takes that falls in its gate
+        brings it back under its id instead of starting a new track (0: forget at once).
+    report_misses: a confirmed track is reported while it has at most this many consecutive
+        misses (None: always, while it lives); a hidden track keeps predicting and is
+        reported again once re-detected, under the same id.
     max_std_frac: delete when the centre std exceeds this fraction of the window size.
     gate_probability: chi-square gate of the association.
     init_velocity_std, init_scale_velocity_std: velocity std of a new track at scale 1
@@ -77,11 +96,15 @@ class TrackerConfig:
     """
 
     mode: Literal['planner', 'full'] = 'planner'
-    new_tracks: Literal['none', 'periodic', 'sweep'] = 'periodic'
+    new_tracks: Literal['budget', 'none', 'periodic', 'sweep'] = 'budget'
     full_frame_period: int = 30
     sweep_fraction: float = 0.05
+    birth_share: float = 0.15
     confirm_hits: int = 2
     max_misses: int = 5
+    report_misses: int | None = None
+    keep_lost: int = 0
+    birth_score: float = -np.inf
     max_std_frac: float = 1.5
     gate_probability: float = 0.99
     init_velocity_std: float = 4.0
@@ -96,9 +119,10 @@ class TrackerConfig:
         problems = []
         if self.mode not in ('planner', 'full'):
             problems.append(f"mode must be 'planner' or 'full', got {self.mode!r}")
-        if self.new_tracks not in ('none', 'periodic', 'sweep'):
-            problems.append(f"new_tracks must be 'none', 'periodic' or 'sweep', "
-                            f'got {self.new_tracks!r}')
+        if self.new_tracks not in NEW_TRACKS:
+            problems.append(f'new_tracks must be one of {NEW_TRACKS}, got {self.new_tracks!r}')
+        if not 0.0 <= self.birth_share < 1.0:
+            problems.append(f'birth_share must be in [0, 1), got {self.birth_share}')
         if self.full_frame_period < 1:
             problems.append(f'full_frame_period must be >= 1, got {self.full_frame_period}')
         if not 0.0 < self.sweep_fraction <= 1.0:
@@ -109,6 +133,27 @@ class TrackerConfig:
             problems.append(f'max_std_frac must be > 0, got {self.max_std_frac}')
         if problems:
             raise ValueError('TrackerConfig: ' + '; '.join(problems))
+
+
+#: The deployed configuration (the node's defaults; ``evaluate``'s default protocol): track
+#: births paid from the S_max budget, the constraint counting the pixels the detector reads
+#: (at the resolution it reads them), births only from confident detections (birth_score is
+#: on HOG's SVM margin: another detector plug-in needs its own), missed tracks not reported.
+DEPLOYED = {'new_tracks': 'budget', 'area': 'scaled', 'full_frame_period': 5,
+            'birth_share': 0.15, 'report_misses': 0, 'birth_score': 0.8, 'keep_lost': 10}
+#: The thesis protocol (section 5.4): tracks only from the first frame, the centre-box area.
+THESIS = {'new_tracks': 'none', 'area': 'centres', 'full_frame_period': 30, 'birth_share': 0.15,
+          'report_misses': None, 'birth_score': -np.inf, 'keep_lost': 0}
+PROTOCOLS = {'deployed': DEPLOYED, 'thesis': THESIS}
+
+
+def deployed_config(planner: PlannerConfig | None = None, **overrides: object) -> 'TrackerConfig':
+    """The deployed configuration (:data:`DEPLOYED`) around a planner configuration, whose
+    area is set to DEPLOYED's; ``overrides`` replace any TrackerConfig field."""
+    kwargs: dict[str, object] = {k: v for k, v in DEPLOYED.items() if k != 'area'}
+    kwargs.update(overrides)
+    return TrackerConfig(planner=replace(planner or PlannerConfig(), area=str(DEPLOYED['area'])),
+                         **kwargs)  # type: ignore[arg-type]
 
 
 @dataclass
@@ -142,8 +187,13 @@ class FrameResult:
 
     ids, boxes (n, 4) x, y, w, h object boxes, states (n, 6), covariances (n, 6, 6): the
     confirmed tracks; hits (n,): how many times each was detected. regions (m, 6): the
-    processed regions (one full-image row for a full-frame detection). attended_ids: tracks whose region was processed. detections: the
-    detector's window boxes. detector_s, plan_s, total_s: wall times.
+    processed regions (one full-image row for a full-frame detection). attended_ids: tracks
+    whose region was processed. detections: the detector's window boxes. detector_s, plan_s,
+    total_s: wall times; detector_cpu_s: the detector's CPU time (all its threads).
+    processed_fraction: the share of the image the detector read (union of its crops,
+    :func:`.regions.read_area`; 1 for a full frame). savings: the budget saved towards the
+    next full frame, in image areas ('budget' births). covered_fraction: the share of the
+    image the crops cover (= processed_fraction unless the area counts 'scaled' pixels).
     """
 
     frame: int
@@ -163,6 +213,9 @@ class FrameResult:
     processed_fraction: float = 0.0
     created: int = 0
     deleted: int = 0
+    detector_cpu_s: float = 0.0
+    savings: float = 0.0
+    covered_fraction: float = 0.0
 
 
 class MotTracker:
@@ -185,6 +238,11 @@ class MotTracker:
         self.frame_index = 0
         self.image_size: tuple[int, int] | None = None
         self._next_id = 1
+        self.savings = 0.0            # pixels saved towards the next full frame ('budget')
+        self._last_full = 0           # frame index of the last full-frame detection
+        self.lost = Tracks()          # recently deleted tracks, still predicted (keep_lost)
+        self._lost_age = np.zeros(0, np.int64)
+        self.planner.reset()
 
     # --- helpers --------------------------------------------------------------------------
 
@@ -269,8 +327,10 @@ class MotTracker:
         if len(tracks):
             x, P = predict(tracks.x, tracks.P, self.cfg.motion)
             tracks = replace(tracks, x=x, P=P)
-        tracks, deleted = self._prune(tracks)
+        lost, lost_age = self._aged_lost(homography)
+        tracks, deleted, newly_lost = self._prune(tracks)
         self.tracks = tracks
+        self.lost, self._lost_age = self._remember(lost, lost_age, newly_lost)
         return self._result(Detections.empty(), np.zeros((0, 6)), np.zeros(0, np.int64), False,
                             0.0, 0.0, t0, 0, 0, deleted, 0.0)
 
@@ -286,8 +346,13 @@ class MotTracker:
         cfg = self.cfg
         width, height = size
         bootstrap = self.image_size is None
+        image_area = float(width * height)
+        credit = cfg.planner.s_max * image_area          # this frame's share ('budget')
+        budgeted = cfg.new_tracks == 'budget' and cfg.mode == 'planner'
+        due = self.frame_index - self._last_full >= cfg.full_frame_period
         full = (bootstrap or cfg.mode == 'full'
-                or (cfg.new_tracks == 'periodic' and self.frame_index % cfg.full_frame_period == 0))
+                or (cfg.new_tracks == 'periodic' and self.frame_index % cfg.full_frame_period == 0)
+                or (budgeted and due and self.savings + credit >= image_area))
         tracks = self._warped(homography)
         if len(tracks):
             x, P = predict(tracks.x, tracks.P, cfg.motion)
@@ -298,18 +363,25 @@ class MotTracker:
             attended = np.ones(len(tracks), bool)
             det_regions = None
         else:
-            plan = self.planner.plan(tracks.x, tracks.P, size)
+            track_budget = (1.0 - cfg.birth_share) * credit
+            plan = self.planner.plan(tracks.x, tracks.P, size,
+                                     track_budget if budgeted and cfg.planner.area in READ_MODES
+                                     else None)
             plan_s, iterations = plan.plan_s, plan.iterations
-            attended = plan.action
+            attended = plan.action.copy()
+            if budgeted:                                   # S_max binds the pixels read
+                attended = self._within(plan, attended, track_budget, size)
             regions = plan.regions[attended]
             if cfg.new_tracks == 'sweep':
                 regions = np.concatenate([regions, self._sweep_region(size)])
             det_regions = regions
-        t_det = time.perf_counter()
+        t_det, c_det = time.perf_counter(), time.process_time()
         det = (self.detector.detect(image, det_regions) if det_regions is None or len(det_regions)
                else Detections.empty())
         detector_s = time.perf_counter() - t_det
-        z, R, _ = self._measurements(det)
+        detector_cpu_s = time.process_time() - c_det
+        z, R, scores = self._measurements(det)
+        lost, lost_age = self._aged_lost(homography)
 
         assoc = associate(tracks.x, tracks.P, z, R, self.gate)
         m_t, m_d = assoc.matches[:, 0], assoc.matches[:, 1]
@@ -330,9 +402,25 @@ class MotTracker:
         tracks = tracks.select(~(missed & ~tracks.confirmed) | bootstrap)
         deleted = n_before - len(tracks)
 
+        # Detections no live track took may bring back a recently lost one (keep_lost).
+        unmatched = assoc.unmatched_detections
+        sure = unmatched[scores[unmatched] >= cfg.birth_score]     # as sure as a birth
+        if len(lost) and sure.size:
+            back = associate(lost.x, lost.P, z[sure], R[sure], self.gate).matches
+            if back.size:
+                li, di = back[:, 0], sure[back[:, 1]]
+                xb, Pb = update(lost.x[li], lost.P[li], z[di], R[di])
+                tracks = tracks.concat(Tracks(lost.ids[li], xb, Pb, lost.hits[li] + 1,
+                                              np.zeros(li.size, np.int64),
+                                              np.ones(li.size, bool)))
+                stay = np.ones(len(lost), bool)
+                stay[li] = False
+                lost, lost_age = lost.select(stay), lost_age[stay]
+                unmatched = np.setdiff1d(unmatched, di)
         created = 0
         if bootstrap or cfg.new_tracks != 'none':
-            z_new = z[assoc.unmatched_detections]
+            z_new = z[unmatched]
+            z_new = z_new[scores[unmatched] >= cfg.birth_score]
             if len(tracks) and z_new.shape[0]:
                 iou = box_iou(self.window_boxes(z_new), self.window_boxes(tracks.x))
                 z_new = z_new[~(iou > cfg.new_track_iou).any(axis=1)]
@@ -342,17 +430,69 @@ class MotTracker:
                 tracks = tracks.concat(born)
                 created = z_new.shape[0]
         self.image_size = size
-        tracks, pruned = self._prune(tracks)
+        tracks, pruned, newly_lost = self._prune(tracks)
         attended_ids = self.tracks.ids[attended] if len(self.tracks) else np.zeros(0, np.int64)
         self.tracks = tracks
-        processed = float(region_areas(regions).sum())
-        return self._result(det, regions, attended_ids, full, detector_s, plan_s, t0,
-                            iterations, created, deleted + pruned, processed / (width * height))
+        self.lost, self._lost_age = self._remember(lost, lost_age, newly_lost)
+        read = image_area if full else read_area(regions, size, self._read_mode)
+        if budgeted and not bootstrap:
+            self.savings = min(self.savings + credit - read, image_area)
+        if full:
+            self._last_full = self.frame_index
+        result = self._result(det, regions, attended_ids, full, detector_s, plan_s, t0,
+                              iterations, created, deleted + pruned, read / image_area)
+        result.detector_cpu_s = detector_cpu_s
+        result.savings = self.savings / image_area
+        result.covered_fraction = 1.0 if full else read_area(regions, size) / image_area
+        return result
 
-    def _prune(self, tracks: Tracks) -> tuple[Tracks, int]:
-        """Delete tracks after too many misses, out of the image, or lost (module docstring)."""
+    @property
+    def _read_mode(self) -> str:
+        """How the pixels read are counted: as the constraint counts them ('pixels' or
+        'scaled'); 'pixels' for the thesis's 'centres'."""
+        area = self.cfg.planner.area
+        return area if area in READ_MODES else 'pixels'
+
+    def _within(self, plan: Plan, attended: BoolArray, budget: float,
+                size: tuple[int, int]) -> BoolArray:
+        """The attended regions, dropping regions until the union of what the detector reads
+        fits the budget (a no-op when the planner counted pixels: its areas add up to at least
+        their union); the largest goes first."""
+        keep = np.flatnonzero(attended)
+        keep = keep[np.argsort(plan.areas[keep], kind='stable')]
+        while keep.size and read_area(plan.regions[keep], size, self._read_mode) > budget:
+            keep = keep[:-1]
+        out = np.zeros_like(attended)
+        out[keep] = True
+        return out
+
+    def _aged_lost(self, homography: FloatArray | None) -> tuple[Tracks, IntArray]:
+        """The lost tracks one frame on (moved by the camera's rotation, predicted, aged)."""
+        lost = self.lost
+        if not len(lost):
+            return lost, self._lost_age
+        if homography is not None:
+            h = np.asarray(homography, dtype=float)
+            x, P = warp_beliefs(lost.x, lost.P, h / h[2, 2])
+            lost = replace(lost, x=x, P=P)
+        x, P = predict(lost.x, lost.P, self.cfg.motion)
+        return replace(lost, x=x, P=P), self._lost_age + 1
+
+    def _remember(self, lost: Tracks, age: IntArray, newly: Tracks) -> tuple[Tracks, IntArray]:
+        """The lost tracks to keep: the newly lost added, those older than keep_lost gone."""
+        if self.cfg.keep_lost <= 0:
+            return Tracks(), np.zeros(0, np.int64)
+        lost = lost.concat(newly)
+        age = np.concatenate([age, np.zeros(len(newly), np.int64)])
+        keep = age <= self.cfg.keep_lost
+        return lost.select(keep), age[keep]
+
+    def _prune(self, tracks: Tracks) -> tuple[Tracks, int, Tracks]:
+        """Delete tracks after too many misses, out of the image, or lost (module docstring);
+        returns the tracks kept, how many were deleted and the confirmed ones deleted inside
+        the image (the lost tracks :meth:`_remember` may keep)."""
         if not len(tracks) or self.image_size is None:
-            return tracks, 0
+            return tracks, 0, Tracks()
         width, height = self.image_size
         g = self.detector.geometry
         x, P = tracks.x, tracks.P
@@ -361,12 +501,16 @@ class MotTracker:
         sharp = ((np.sqrt(P[:, 0, 0]) <= self.cfg.max_std_frac * s * g.window_w)
                  & (np.sqrt(P[:, 1, 1]) <= self.cfg.max_std_frac * s * g.window_h))
         keep = inside & sharp & (tracks.misses <= self.cfg.max_misses) & (x[:, 2] > 0)
-        return tracks.select(keep), int((~keep).sum())
+        lost = ~keep & inside & (x[:, 2] > 0) & tracks.confirmed
+        return tracks.select(keep), int((~keep).sum()), tracks.select(lost)
 
     def _result(self, det: Detections, regions: FloatArray, attended_ids: IntArray, full: bool,
                 detector_s: float, plan_s: float, t0: float, iterations: int, created: int,
                 deleted: int, processed: float) -> FrameResult:
-        t = self.tracks.select(self.tracks.confirmed)
+        shown = self.tracks.confirmed
+        if self.cfg.report_misses is not None:
+            shown = shown & (self.tracks.misses <= self.cfg.report_misses)
+        t = self.tracks.select(shown)
         result = FrameResult(
             frame=self.frame_index, ids=t.ids.copy(), boxes=self.object_boxes(t.x),
             states=t.x.copy(), covariances=t.P.copy(), hits=t.hits.copy(), regions=regions,
