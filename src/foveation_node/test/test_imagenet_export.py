@@ -92,7 +92,7 @@ def test_cli_errors_are_one_line(tmp_path, capsys) -> None:
     bad.write_text('only\nthree\nclasses\n')
     for argv, match in (([ 'lite0', '--classes', str(bad)], r'bad\.txt has 3 classes'),
                         (['lite9', '--classes', str(bad)], r"invalid choice: 'lite9'"),
-                        (['lite0'], r'--classes')):
+                        (['lite0', '--classes', str(tmp_path / 'missing.txt')], r'missing\.txt')):
         with pytest.raises(SystemExit) as exc:
             raise SystemExit(export_imagenet_classifier.main(argv))
         assert exc.value.code == 2

@@ -53,7 +53,8 @@ MODULE_KEYS = {
 PIP_ONLY = {
     'cyclonedds': 'cyclonedds', 'lz4': 'lz4', 'mcap': 'mcap', 'motmetrics': 'motmetrics',
     'mujoco': 'mujoco', 'open3d': 'open3d', 'rosbags': 'rosbags', 'torch': 'torch',
-    'zstandard': 'zstandard',
+    'zstandard': 'zstandard', 'foxglove': 'foxglove-sdk', 'websockets': 'websockets',
+    'efficientnet_lite_pytorch': 'efficientnet-lite-pytorch',
 }
 
 # 'pkg/msg/Type' placeholders in docstrings and messages, not packages.
