@@ -7,7 +7,7 @@ ROS_STAMP := build/.setup-ros-stamp
 ROS_INPUTS := $(SETUP_INPUTS) requirements-ros.txt scripts/setup_ros.sh scripts/gen_tf2_msgs.py \
 	msgs/CMakeLists.txt msgs/package.xml $(wildcard msgs/msg/*.msg)
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test lint bench clean
 
 setup: $(SETUP_STAMP) $(ROS_STAMP)
 
@@ -27,6 +27,11 @@ demo: setup
 test: setup
 	$(PY) -m pytest
 	bash scripts/test_ros.sh
+
+# ruff (ruff.toml: the project's rule set) over everything, mypy (mypy.ini) over every package.
+lint: $(SETUP_STAMP)
+	.venv/bin/ruff check .
+	.venv/bin/mypy
 
 bench: setup
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

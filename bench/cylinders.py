@@ -13,9 +13,10 @@ mild Table 4.1 bias; the other biases alongside).
 
 Per-stage process CPU time (downsample, plane, clusters, classification, fitting, total; medians
 of --repeats runs) of the rendered frame, the synthetic frame, and a cloud a user would run
-detect_file on: the real PCL tabletop capture /work/shared/data/pcl/milk_cartoon_all_small_clorox.pcd
-(640x480 organized RGB-D) when it exists, else a synthetic room (core.scene.make_room: a table
-with a mug and a bottle, the floor with clutter 2 m away, a back wall, the largest plane), with
+detect_file on: the real PCL tabletop capture
+/work/shared/data/pcl/milk_cartoon_all_small_clorox.pcd (640x480 organized RGB-D) when it exists,
+else a synthetic room (core.scene.make_room: a table with a mug and a bottle, the floor with
+clutter 2 m away, a back wall, the largest plane), with
 detect_file's default options, and what it finds there (radius, height, range, axis angle to the
 table normal). If pyransac3d is installed (it is no dependency of the project), the same cloud
 through the usual baseline: Open3D plane removal (segment_plane on the 1 cm voxel grid, the
@@ -41,9 +42,14 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1  # noqa: E402
-from cylinder_detector_node.core.fitting import FitParams, fit_cylinder, make_directions, rotation_to_z  # noqa: E402
-from cylinder_detector_node.core.pipeline import detect_cylinders  # noqa: E402
 from cylinder_detector_node.core.cloudfile import read_cloud  # noqa: E402
+from cylinder_detector_node.core.fitting import (  # noqa: E402
+    FitParams,
+    fit_cylinder,
+    make_directions,
+    rotation_to_z,
+)
+from cylinder_detector_node.core.pipeline import detect_cylinders  # noqa: E402
 from cylinder_detector_node.core.scene import make_room, make_tabletop  # noqa: E402
 from cylinder_detector_node.core.segmentation import SegmentParams, segment_tabletop  # noqa: E402
 from cylinder_detector_node.core.synthetic import axis_angle_deg, make_cylinder  # noqa: E402
@@ -73,7 +79,8 @@ def angle_deg(a, b) -> float:
     return float(np.degrees(np.arccos(min(1.0, c))))
 
 
-def pyransac3d_baseline(points: np.ndarray, repeats: int) -> tuple[float, list[dict[str, float]]] | None:
+def pyransac3d_baseline(points: np.ndarray,
+                        repeats: int) -> tuple[float, list[dict[str, float]]] | None:
     """(median CPU ms, cylinders) of Open3D plane removal + DBSCAN + pyransac3d on points, or
     None when pyransac3d is not installed."""
     try:
@@ -95,17 +102,20 @@ def pyransac3d_baseline(points: np.ndarray, repeats: int) -> tuple[float, list[d
         rest = np.asarray(down.select_by_index(inliers, invert=True).points)
         h = rest @ n + d
         rest = rest[(h > 0.01) & (h < 0.5)]
-        labels = np.asarray(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(rest)).cluster_dbscan(0.02, 10))
+        labels = np.asarray(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(rest))
+                            .cluster_dbscan(0.02, 10))
         found = []
         for lab in range(labels.max() + 1 if labels.size else 0):
             cp = rest[labels == lab]
             if len(cp) < 30:
                 continue
-            centre, axis, radius, inl = pyransac3d.Cylinder().fit(cp, thresh=0.01, maxIteration=1000)
+            centre, axis, radius, inl = pyransac3d.Cylinder().fit(cp, thresh=0.01,
+                                                                  maxIteration=1000)
             if len(inl) == 0 or not np.isfinite(radius):
                 continue
             found.append({'cluster_centre': cp.mean(axis=0), 'radius': float(radius),
-                          'axis_to_plane_normal_deg': angle_deg(axis, n), 'inlier_fraction': len(inl) / len(cp)})
+                          'axis_to_plane_normal_deg': angle_deg(axis, n),
+                          'inlier_fraction': len(inl) / len(cp)})
         return found
 
     run()
@@ -139,18 +149,21 @@ def user_cloud(fit: FitParams, repeats: int) -> dict[str, object]:
         if name and c is None:
             continue
         det = detect_cylinders(points, seg, fit, image=image, classifier=c)
-        runs = [detect_cylinders(points, seg, fit, image=image, classifier=c).stage_cpu_ms for _ in range(repeats)]
+        runs = [detect_cylinders(points, seg, fit, image=image, classifier=c).stage_cpu_ms
+                for _ in range(repeats)]
         out['user_cloud_stage_cpu_ms' + name] = stage_cpu(runs)
         out['user_cloud_cylinders' + name] = [
             {'radius_cm': round(100 * cy.radius, 2), 'height_cm': round(100 * cy.height, 1),
              'range_m': round(float(np.linalg.norm(cy.centre)), 2),
              'axis_to_table_normal_deg': round(angle_deg(cy.axis, det.plane[:3]), 1),
-             'confidence': round(cy.confidence, 3), 'probability': None if p is None else round(p, 3)}
-            for cy, p in zip(det.cylinders, det.probabilities)]
+             'confidence': round(cy.confidence, 3),
+             'probability': None if p is None else round(p, 3)}
+            for cy, p in zip(det.cylinders, det.probabilities, strict=True)]
         if not name:
             out['user_cloud_table'] = None if det.plane is None else {
                 'height_m': round(float(det.plane[3]), 3),
-                'angle_to_up_deg': round(angle_deg(det.plane[:3], seg.up), 1), 'clusters': det.n_clusters}
+                'angle_to_up_deg': round(angle_deg(det.plane[:3], seg.up), 1),
+                'clusters': det.n_clusters}
             ours = det
     base = pyransac3d_baseline(points, repeats)
     if base is None:
@@ -159,15 +172,19 @@ def user_cloud(fit: FitParams, repeats: int) -> dict[str, object]:
     base_cpu, found = base
     ours_cpu = out['user_cloud_stage_cpu_ms']['total']      # type: ignore[index]
     matched = []
-    for cy, cl in zip(ours.cylinders, ours.clusters):
+    for cy, cl in zip(ours.cylinders, ours.clusters, strict=True):
         centre = cl.points.mean(axis=0)
         b = min(found, key=lambda f: np.linalg.norm(f['cluster_centre'] - centre), default=None)
         if b is not None and np.linalg.norm(b['cluster_centre'] - centre) < 0.05:
-            matched.append({'ours_radius_cm': round(100 * cy.radius, 2), 'pyransac3d_radius_cm': round(100 * b['radius'], 2),
-                            'pyransac3d_axis_to_plane_normal_deg': round(b['axis_to_plane_normal_deg'], 1)})
+            matched.append({'ours_radius_cm': round(100 * cy.radius, 2),
+                            'pyransac3d_radius_cm': round(100 * b['radius'], 2),
+                            'pyransac3d_axis_to_plane_normal_deg':
+                                round(b['axis_to_plane_normal_deg'], 1)})
         else:
-            matched.append({'ours_radius_cm': round(100 * cy.radius, 2), 'pyransac3d_radius_cm': None})
-    out.update(pyransac3d_baseline_cpu_ms=round(base_cpu, 1), pyransac3d_baseline_cylinders=len(found),
+            matched.append({'ours_radius_cm': round(100 * cy.radius, 2),
+                            'pyransac3d_radius_cm': None})
+    out.update(pyransac3d_baseline_cpu_ms=round(base_cpu, 1),
+               pyransac3d_baseline_cylinders=len(found),
                pyransac3d_vs_ours_cpu=round(base_cpu / max(ours_cpu, 1e-9), 1),
                pyransac3d_matched=matched)
     return out
@@ -197,8 +214,8 @@ def rendered_frame_ms(fit: FitParams, repeats: int) -> dict[str, object]:
         for _ in range(repeats):
             t, tc = time.perf_counter(), time.process_time()
             d = run(c)
-            runs.append((1e3 * (time.perf_counter() - t), d.timings_ms, 1e3 * (time.process_time() - tc),
-                         d.stage_cpu_ms))
+            runs.append((1e3 * (time.perf_counter() - t), d.timings_ms,
+                         1e3 * (time.process_time() - tc), d.stage_cpu_ms))
         stages['frame_ms' + name] = round(float(np.median([x[0] for x in runs])), 1)
         stages['frame_cpu_ms' + name] = round(float(np.median([x[2] for x in runs])), 1)
         for k in ('segmentation', 'classification', 'identification'):
@@ -214,17 +231,20 @@ def rendered_frame_ms(fit: FitParams, repeats: int) -> dict[str, object]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--repeats', type=int, default=10)
-    ap.add_argument('--scenes', type=int, default=50, help='synthetic scenes for the outlier accuracy')
+    ap.add_argument('--scenes', type=int, default=50,
+                    help='synthetic scenes for the outlier accuracy')
     args = ap.parse_args()
     torch.set_num_threads(1)
     fit = FitParams(gmm=TABLE_4_1['mild'])
     rendered = rendered_frame_ms(fit, args.repeats)
     scene = make_tabletop(np.random.default_rng(0))
     det = detect_cylinders(scene.cloud, fit=fit, intrinsics=scene.intrinsics)
-    frame_ms = timed(lambda: detect_cylinders(scene.cloud, fit=fit, intrinsics=scene.intrinsics), args.repeats)
+    frame_ms = timed(lambda: detect_cylinders(scene.cloud, fit=fit, intrinsics=scene.intrinsics),
+                     args.repeats)
     seg = segment_tabletop(scene.cloud, intrinsics=scene.intrinsics)
     seg_ms = timed(lambda: segment_tabletop(scene.cloud, intrinsics=scene.intrinsics), args.repeats)
-    synthetic_stages = stage_cpu([detect_cylinders(scene.cloud, fit=fit, intrinsics=scene.intrinsics).stage_cpu_ms
+    synthetic_stages = stage_cpu([detect_cylinders(scene.cloud, fit=fit,
+                                                   intrinsics=scene.intrinsics).stage_cpu_ms
                                   for _ in range(args.repeats)])
     user = user_cloud(fit, args.repeats)
     rot = rotation_to_z(seg.plane[:3])
@@ -254,7 +274,8 @@ def main() -> None:
         e = []
         for i in range(args.scenes):
             rng = np.random.default_rng([7, i])
-            s = make_cylinder(rng, 0.3, rng.uniform(0.05, 2.0), 900, 1.5, centre=rng.uniform(-1, 1, 3))
+            s = make_cylinder(rng, 0.3, rng.uniform(0.05, 2.0), 900, 1.5,
+                              centre=rng.uniform(-1, 1, 3))
             c = fit_cylinder(s.points, p, d)
             e.append(90.0 if c is None else axis_angle_deg(np.array(c.axis), s.axis))
         return e
@@ -279,9 +300,12 @@ def main() -> None:
         'segmentation_ms': round(seg_ms, 1),
         'rabbani_ms': round(per_method['rabbani'], 1),
         'ours_ms': round(per_method['ours'], 1),
-        'rabbani_ms_min': round(per_method_min['rabbani'], 1), 'ours_ms_min': round(per_method_min['ours'], 1),
-        'rabbani_cpu_ms': round(cpu_median['rabbani'], 1), 'ours_cpu_ms': round(cpu_median['ours'], 1),
-        'rabbani_cpu_ms_min': round(cpu_min['rabbani'], 1), 'ours_cpu_ms_min': round(cpu_min['ours'], 1),
+        'rabbani_ms_min': round(per_method_min['rabbani'], 1),
+        'ours_ms_min': round(per_method_min['ours'], 1),
+        'rabbani_cpu_ms': round(cpu_median['rabbani'], 1),
+        'ours_cpu_ms': round(cpu_median['ours'], 1),
+        'rabbani_cpu_ms_min': round(cpu_min['rabbani'], 1),
+        'ours_cpu_ms_min': round(cpu_min['ours'], 1),
         'n_clusters': len(seg.clusters),
         'synthetic_stage_cpu_ms_no_classifier': synthetic_stages,
         **user,

@@ -149,18 +149,18 @@ def bench_imagenet(frames: list[np.ndarray], foveator: Foveator,
         name = model.stem.replace('efficientnet_', '')
         clf = Classifier(model, model.with_suffix('.labels'))
         top5 = list(np.argsort(-clf.classify(frames[0])[0])[:5])
-        classify = rate(lambda i: clf.classify(frames[i % 4]), 1.0, 10)
-        saliency = rate(lambda i: clf.saliency(frames[i % 4], top5), 1.0, 3)
-        whole = rate(lambda i: two_pass(clf, frames[i % 4], (319.5, 239.5), foveator.foveate),
-                     2.0, 2)
+        classify = rate(lambda i, clf=clf: clf.classify(frames[i % 4]), 1.0, 10)
+        saliency = rate(lambda i, clf=clf, top5=top5: clf.saliency(frames[i % 4], top5), 1.0, 3)
+        whole = rate(lambda i, clf=clf: two_pass(clf, frames[i % 4], (319.5, 239.5),
+                                                 foveator.foveate), 2.0, 2)
         eager = None
         try:
             from foveation_node.core.imagenet_export import build_lite
             net = build_lite(name)
             x = clf.preprocess(frames[0])
             with torch.inference_mode():
-                eager = 1e3 / rate(lambda i: net(x), 1.0, 10)[0]
-                traced = 1e3 / rate(lambda i: clf.model(x), 1.0, 10)[0]
+                eager = 1e3 / rate(lambda i, net=net, x=x: net(x), 1.0, 10)[0]
+                traced = 1e3 / rate(lambda i, clf=clf, x=x: clf.model(x), 1.0, 10)[0]
         except (ImportError, ValueError):
             traced = None
         w, h = clf.preprocessing.input_size

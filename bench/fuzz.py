@@ -45,7 +45,8 @@ def main() -> int:
             report = fuzz_node(name, ns.per_topic, ns.seed, log_dir=Path(tmp),
                                progress=lambda line: print(line, file=sys.stderr, flush=True))
             reports[name] = report
-            print(f'{name}: sent {sum(t.sent for t in report.topics)} on {len(report.topics)} topics, '
+            print(f'{name}: sent {sum(t.sent for t in report.topics)} '
+                  f'on {len(report.topics)} topics, '
                   f'crashed={report.crashed} hung={report.hung} exit={report.exit_code}',
                   file=sys.stderr, flush=True)
             if report.crashed or report.hung:
@@ -53,7 +54,8 @@ def main() -> int:
     result = {
         'per_topic': ns.per_topic, 'seed': ns.seed,
         'messages_sent': sum(t.sent for r in reports.values() for t in r.topics),
-        'messages_sent_by_node': {n: {t.topic: t.sent for t in r.topics} for n, r in reports.items()},
+        'messages_sent_by_node': {n: {t.topic: t.sent for t in r.topics}
+                                  for n, r in reports.items()},
         'crashes': sorted(n for n, r in reports.items() if r.crashed),
         'hangs': sorted(n for n, r in reports.items() if r.hung),
         'refusals': {n: r.refusals for n, r in reports.items()},

@@ -55,9 +55,12 @@ def summary(values: list[float]) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--rounds', type=int, default=3)
-    parser.add_argument('--cold', action='store_true', help='no standbys: every respawn starts cold')
+    parser.add_argument('--cold', action='store_true',
+                        help='no standbys: every respawn starts cold')
     ns = parser.parse_args()
-    log = tempfile.NamedTemporaryFile('w+', prefix='vizzy_lifecycle_', suffix='.log', delete=False)
+    # the launcher writes to it for the whole run; kept (delete=False): its name is reported
+    log = tempfile.NamedTemporaryFile('w+', prefix='vizzy_lifecycle_', suffix='.log',  # noqa: SIM115
+                                      delete=False)
     graph = load_graph(default_graph_file())
     graph.respawn_standby = not ns.cold
     for spec in graph.nodes:
@@ -65,7 +68,8 @@ def main() -> int:
     # standbys right away, one per second (the bench kills nodes sooner than the shipped 30 s)
     Launcher.STANDBY_AFTER_S, Launcher.STANDBY_STAGGER_S = 0.0, 1.0
     launcher = Launcher(graph, output=log)
-    readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=50)) for n, (t, ty) in OUTPUT.items()}
+    readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=50))
+               for n, (t, ty) in OUTPUT.items()}
     stop_s: dict[str, list[float]] = {n: [] for n in OUTPUT}
     back_s: dict[str, list[float]] = {n: [] for n in OUTPUT}
 
@@ -87,22 +91,24 @@ def main() -> int:
         for name in OUTPUT:
             for _ in range(ns.rounds):
                 proc = launcher.procs[name]
-                wait_until(lambda: standby_ready(name), TIMEOUT_S)
+                wait_until(lambda name=name: standby_ready(name), TIMEOUT_S)
                 t0 = time.monotonic()
                 proc.send_signal(signal.SIGINT)
-                if not wait_until(lambda: proc.poll() is not None, 30):
+                if not wait_until(lambda proc=proc: proc.poll() is not None, 30):
                     raise SystemExit(f'bench/lifecycle: {name} still running 30 s after SIGINT')
                 stop_s[name].append(time.monotonic() - t0)
                 readers[name].take(1000)
-                if not wait_until(lambda: flowing_from_new(name, proc), TIMEOUT_S):
+                if not wait_until(lambda name=name, proc=proc: flowing_from_new(name, proc),
+                                  TIMEOUT_S):
                     raise SystemExit(f'bench/lifecycle: {name} did not come back after SIGINT')
                 proc = launcher.procs[name]
-                wait_until(lambda: standby_ready(name), TIMEOUT_S)
+                wait_until(lambda name=name: standby_ready(name), TIMEOUT_S)
                 t0 = time.monotonic()
                 os.killpg(proc.pid, signal.SIGKILL)
-                wait_until(lambda: proc.poll() is not None, 30)
+                wait_until(lambda proc=proc: proc.poll() is not None, 30)
                 readers[name].take(1000)
-                if not wait_until(lambda: flowing_from_new(name, proc), TIMEOUT_S):
+                if not wait_until(lambda name=name, proc=proc: flowing_from_new(name, proc),
+                                  TIMEOUT_S):
                     raise SystemExit(f'bench/lifecycle: {name} did not come back after SIGKILL')
                 back_s[name].append(time.monotonic() - t0)
                 print(f'{name}: stopped {stop_s[name][-1]:.2f} s after SIGINT, '

@@ -76,7 +76,7 @@ def main() -> None:
         plan_det += det_plan
         full_det += det_full
         plan_ms += [1e3 * s for s in plan.plan_s[1:]]
-        frame_ms += [1e3 * (s + d) for s, d in zip(plan.step_s[1:], det_plan)]
+        frame_ms += [1e3 * (s + d) for s, d in zip(plan.step_s[1:], det_plan, strict=True)]
         motp_delta.append(plan.metrics['motp'] - full.metrics['motp'])
         per_seed.append({
             'seed': seed,

@@ -68,11 +68,9 @@ except ImportError as exc:                                   # bench dependency 
 
 from mot_planner_node.core.detector import Detections, HogDetector  # noqa: E402
 from mot_planner_node.core.metrics import MotEvaluator, summarize  # noqa: E402
-from mot_planner_node.core.motchallenge import (Sequence, find_sequences,  # noqa: E402
-                                                load_sequence)
+from mot_planner_node.core.motchallenge import Sequence, find_sequences, load_sequence  # noqa: E402
 from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
-from mot_planner_node.core.tracker import (DEPLOYED, MotTracker,  # noqa: E402
-                                           TrackerConfig, deployed_config)
+from mot_planner_node.core.tracker import DEPLOYED, MotTracker, TrackerConfig, deployed_config  # noqa: E402
 from mot_planner_node.evaluate import finite_or_none, read_frame  # noqa: E402
 
 
@@ -106,7 +104,8 @@ def full_frame_detections(seq: Sequence, images: list[np.ndarray], hog: HogDetec
         counts = z['counts']
         splits = np.cumsum(counts)[:-1]
         return ([Detections(b, s) for b, s in zip(np.split(z['boxes'], splits),
-                                                    np.split(z['scores'], splits))],
+                                                    np.split(z['scores'], splits),
+                                                    strict=True)],
                 [float(c) for c in z['cpu']])
     dets, cpu = [], []
     for image in images:

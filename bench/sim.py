@@ -52,30 +52,32 @@ def main() -> int:
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
     os.environ['VIZZY_RUNTIME'] = 'bundled'
 
-    log = tempfile.TemporaryFile('w+')   # the sim's output: shown only if it fails to come up
-    sim = subprocess.Popen(
-        [sys.executable, '-m', 'vizzy_sim_bridge.sim_node', '--ros-args', '--params-file',
-         str(CONFIG), '-p', f'scene:={ns.scene}', '-p', f'rate_hz:={ns.stereo_hz}',
-         '-p', f'rgbd_rate_hz:={RGBD_HZ}', '-p', 'initial_joint_positions:=[0.0, 0.2, 0.15, 0.0, 0.0]'],
-        env=os.environ.copy(), stdout=log, stderr=subprocess.STDOUT)
-    try:
-        status = _measure(sim, ns)
-    finally:
-        sim.send_signal(signal.SIGINT)
+    # the sim's output: shown only if it fails to come up
+    with tempfile.TemporaryFile('w+') as log:
+        sim = subprocess.Popen(
+            [sys.executable, '-m', 'vizzy_sim_bridge.sim_node', '--ros-args', '--params-file',
+             str(CONFIG), '-p', f'scene:={ns.scene}', '-p', f'rate_hz:={ns.stereo_hz}',
+             '-p', f'rgbd_rate_hz:={RGBD_HZ}',
+             '-p', 'initial_joint_positions:=[0.0, 0.2, 0.15, 0.0, 0.0]'],
+            env=os.environ.copy(), stdout=log, stderr=subprocess.STDOUT)
         try:
-            sim.wait(10)
-        except subprocess.TimeoutExpired:
-            sim.kill()
-    if status:
-        log.seek(0)
-        print(log.read()[-3000:], file=sys.stderr)
-    else:
-        print(json.dumps(_RESULT), flush=True)   # the last line, after the sim has stopped
+            status = _measure(sim, ns)
+        finally:
+            sim.send_signal(signal.SIGINT)
+            try:
+                sim.wait(10)
+            except subprocess.TimeoutExpired:
+                sim.kill()
+        if status:
+            log.seek(0)
+            print(log.read()[-3000:], file=sys.stderr)
+        else:
+            print(json.dumps(_RESULT), flush=True)   # the last line, after the sim has stopped
     return status
 
 
 def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
-    from vizzy_runtime.ros import (Node, message, qos_profile_sensor_data, rclpy)
+    from vizzy_runtime.ros import Node, message, qos_profile_sensor_data, rclpy
     from vizzy_runtime.testing import wait_until
 
     Image = message('sensor_msgs/msg/Image')
@@ -94,8 +96,10 @@ def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
         return cb
 
     node.create_subscription(Image, '/vizzy/left/image_raw', keep('left'), qos_profile_sensor_data)
-    node.create_subscription(Image, '/vizzy/right/image_raw', keep('right'), qos_profile_sensor_data)
-    node.create_subscription(PointCloud2, '/vizzy/rgbd/points', keep('rgbd'), qos_profile_sensor_data)
+    node.create_subscription(Image, '/vizzy/right/image_raw', keep('right'),
+                             qos_profile_sensor_data)
+    node.create_subscription(PointCloud2, '/vizzy/rgbd/points', keep('rgbd'),
+                             qos_profile_sensor_data)
     node.create_subscription(Clock, '/clock', lambda m: clock.append(
         (time.monotonic(), m.clock.sec + m.clock.nanosec * 1e-9)), 10)
 
@@ -132,15 +136,16 @@ def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
 
     latencies = []
     target = 0.15
-    for trial in range(TRIALS):
+    for _trial in range(TRIALS):
         target = -target
         spin_for(0.3)                         # let the previous move settle
         start_q = joints[-1][1]
         n = len(joints)
         t0 = time.monotonic()
         commands.publish(JointState(name=['l_eye_joint'], position=[target]))
-        moved = wait_until(lambda: (rclpy.spin_once(node, timeout_sec=0.001) or True) and any(
-            abs(q - start_q) > 1e-3 for _, q in joints[n:]), 5.0)
+        moved = wait_until(
+            lambda start_q=start_q, n=n: (rclpy.spin_once(node, timeout_sec=0.001) or True)
+            and any(abs(q - start_q) > 1e-3 for _, q in joints[n:]), 5.0)
         if moved:
             t1 = next(t for t, q in joints[n:] if abs(q - start_q) > 1e-3)
             latencies.append((t1 - t0) * 1e3)

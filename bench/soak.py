@@ -29,9 +29,11 @@ os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 from vizzy_runtime import dds  # noqa: E402
 from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph  # noqa: E402
 
-OUTPUTS = {'/vizzy/left/image_raw': 'sensor_msgs/msg/Image', '/gaze/state': 'active_vision_msgs/msg/GazeState',
+OUTPUTS = {'/vizzy/left/image_raw': 'sensor_msgs/msg/Image',
+           '/gaze/state': 'active_vision_msgs/msg/GazeState',
            '/foveation/image': 'sensor_msgs/msg/Image', '/ses/cells': 'sensor_msgs/msg/PointCloud2',
-           '/cylinders': 'active_vision_msgs/msg/CylinderArray', '/mot/tracks': 'active_vision_msgs/msg/TrackArray'}
+           '/cylinders': 'active_vision_msgs/msg/CylinderArray',
+           '/mot/tracks': 'active_vision_msgs/msg/TrackArray'}
 
 
 def rss_mb(pid: int) -> float:
@@ -67,9 +69,12 @@ def main() -> int:
     parser.add_argument('--warmup', type=float, default=60.0)
     parser.add_argument('--window', type=float, default=60.0)
     ns = parser.parse_args()
-    log = tempfile.NamedTemporaryFile('w+', prefix='vizzy_soak_', suffix='.log', delete=False)
+    # the launcher writes to it for the whole run; kept (delete=False): its name is reported
+    log = tempfile.NamedTemporaryFile('w+', prefix='vizzy_soak_', suffix='.log',  # noqa: SIM115
+                                      delete=False)
     launcher = Launcher(load_graph(default_graph_file()), output=log)
-    readers = {t: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=100)) for t, ty in OUTPUTS.items()}
+    readers = {t: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=100))
+               for t, ty in OUTPUTS.items()}
     try:
         launcher.start()
         time.sleep(ns.warmup)

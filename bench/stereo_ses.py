@@ -63,8 +63,8 @@ import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import Callable  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -75,15 +75,22 @@ for _pkg in ('stereo_ses_node', 'foveation_node'):
 
 from foveation_node.core.logpolar import LogPolarRetina  # noqa: E402
 from stereo_ses_node.core.decision import choose_fixation  # noqa: E402
-from stereo_ses_node.core.multires import (DisparityWindow, FoveatedSGBM, SGBMParams,  # noqa: E402
-                                           bad_fraction, cartesian_disparity, coarse_window,
-                                           full_disparity, round_up16, to_gray)
-from stereo_ses_node.core.sensors import fovea_radius  # noqa: E402
 from stereo_ses_node.core.geometry import vergence_poses  # noqa: E402
+from stereo_ses_node.core.multires import (  # noqa: E402
+    DisparityWindow,
+    FoveatedSGBM,
+    SGBMParams,
+    bad_fraction,
+    cartesian_disparity,
+    coarse_window,
+    full_disparity,
+    round_up16,
+    to_gray,
+)
+from stereo_ses_node.core.sensors import fovea_radius  # noqa: E402
 from stereo_ses_node.core.ses import SensoryEgoSphere, brute_force_associate  # noqa: E402
 from stereo_ses_node.core.stereo import StereoPipeline  # noqa: E402
-from stereo_ses_node.core.synthetic import (layered_pair, plane_texture,  # noqa: E402
-                                            random_layers, render_plane)
+from stereo_ses_node.core.synthetic import layered_pair, plane_texture, random_layers, render_plane  # noqa: E402
 from stereo_ses_node.core.ut import StereoRig  # noqa: E402
 
 W, H = 640, 480
@@ -243,12 +250,10 @@ def rectified(results: dict, n_pairs: int, repeats: int, folder: Path,
     ecc_bin = np.clip(np.digitize(ecc, ECC_BINS) - 1, 0, ECC_BINS.size - 2)
     by_ecc = {m: np.zeros((2, ECC_BINS.size - 1)) for m in methods}    # bad, pixels per bin
     work: list[float] = []
-    for k in range(n_pairs):
-        layers = random_layers(tex[4 * k:4 * k + 4], W, H, seed=k)
-        left, right, gt, visible = layered_pair(layers, W, H, noise_sd=2.0, gain=0.97, seed=k)
-        truth = np.where(visible, gt, np.nan)
-        lo = int(math.floor(gt.min())) - 2
-        num = round_up16(math.ceil(gt.max()) + 2 - lo)
+
+    def pair_runs(left: np.ndarray, right: np.ndarray, lo: int,
+                  num: int) -> dict[str, Callable[[], object]]:
+        """The methods timed on one pair, each a call returning its disparity."""
 
         def rebuilt() -> np.ndarray:
             vl = retina.to_retina(retina.to_cortex(to_gray(left)))
@@ -256,7 +261,7 @@ def rectified(results: dict, n_pairs: int, repeats: int, folder: Path,
             return plain_sgbm(np.clip(np.rint(vl), 0, 255).astype(np.uint8),
                               np.clip(np.rint(vr), 0, 255).astype(np.uint8), lo, num, params)
 
-        runs = {
+        return {
             'sgbm_full_gt': lambda: plain_sgbm(left, right, lo, num, params),
             'full': lambda: full_disparity(left, right, coarse_window(left, right, window,
                                                                       params), params).disparity,
@@ -267,6 +272,14 @@ def rectified(results: dict, n_pairs: int, repeats: int, folder: Path,
                 params).disparity,
             'logpolar_rebuilt': rebuilt,
         }
+
+    for k in range(n_pairs):
+        layers = random_layers(tex[4 * k:4 * k + 4], W, H, seed=k)
+        left, right, gt, visible = layered_pair(layers, W, H, noise_sd=2.0, gain=0.97, seed=k)
+        truth = np.where(visible, gt, np.nan)
+        lo = int(math.floor(gt.min())) - 2
+        num = round_up16(math.ceil(gt.max()) + 2 - lo)
+        runs = pair_runs(left, right, lo, num)
         row = {'pair': k, 'true_range': [round(float(gt.min()), 1), round(float(gt.max()), 1)]}
         # load-independent cost: SGBM cost-volume cells (pixels x disparities); plain SGBM
         # scores the columns x >= lo + num of every row

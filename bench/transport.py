@@ -6,8 +6,8 @@ keep-last 5, loopback. Two runs per path: the publisher flat out (image_hz: what
 process receives per second), then paced at PACED_HZ, the rate target (latency_ms_p50: one-way,
 header stamp to receive time; flat out, latency only measures the 5-deep queue and is reported too).
 
-Across vendors (image_hz_<publisher>_to_<subscriber>, delivered_fraction_<...>): the same image from a
-publisher process to a subscriber process, each on the bundled runtime (Cyclone DDS) or on the
+Across vendors (image_hz_<publisher>_to_<subscriber>, delivered_fraction_<...>): the same image from
+a publisher process to a subscriber process, each on the bundled runtime (Cyclone DDS) or on the
 real rclpy (.venv-ros: rmw_fastrtps_cpp, with the real-rclpy tier's environment,
 testing.real_rclpy_env()): all four pairs under the same conditions, sensor-data QoS (best effort,
 keep last 5, as camera images are published), the publisher flat out for DURATION_S. Skipped, with
@@ -64,7 +64,7 @@ def codec_figures() -> dict[str, float]:
 # --- subscriber side (child process) -----------------------------------------------------------
 
 def run_subscriber(mode: str) -> None:
-    from vizzy_runtime import dds, msgs
+    from vizzy_runtime import dds
     stamps: list[tuple[int, int]] = []
     if mode == 'runtime':
         from vizzy_runtime.ros import Node, QoSProfile, message, rclpy
@@ -75,19 +75,21 @@ def run_subscriber(mode: str) -> None:
         def on_image(msg) -> None:
             now = time.time_ns()
             stamps.append((now, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec))
-        sub = node.create_subscription(Image, '/bench/image', on_image, QoSProfile(depth=5))
+        _sub = node.create_subscription(Image, '/bench/image', on_image, QoSProfile(depth=5))
         print('ready', flush=True)
         start = time.monotonic()
         from vizzy_runtime.rclpy_compat import get_global_executor
         ex = get_global_executor()
         ex.add_node(node)
-        while time.monotonic() - start < DURATION_S + 20 and not (stamps and time.time_ns() - stamps[-1][0] > 1e9):
+        while time.monotonic() - start < DURATION_S + 20 \
+                and not (stamps and time.time_ns() - stamps[-1][0] > 1e9):
             ex.spin_once(0.1)
     else:
         reader = dds.RawReader('/bench/raw', 'sensor_msgs/msg/Image', dds.QoS(depth=5))
         print('ready', flush=True)
         start = time.monotonic()
-        while time.monotonic() - start < DURATION_S + 20 and not (stamps and time.time_ns() - stamps[-1][0] > 1e9):
+        while time.monotonic() - start < DURATION_S + 20 \
+                and not (stamps and time.time_ns() - stamps[-1][0] > 1e9):
             for raw, _ts in reader.take(16):
                 now = time.time_ns()
                 sec, nsec = np.frombuffer(raw, dtype='<i4', count=2, offset=4)  # header.stamp
@@ -96,7 +98,8 @@ def run_subscriber(mode: str) -> None:
     recv = np.array(stamps, dtype=np.int64)
     print(json.dumps({'received': len(stamps),
                       'span_s': float((recv[-1, 0] - recv[0, 0]) / 1e9) if len(stamps) > 1 else 0.0,
-                      'latency_ms_p50': float(np.median((recv[:, 0] - recv[:, 1]) / 1e6)) if len(stamps) else None}),
+                      'latency_ms_p50': (float(np.median((recv[:, 0] - recv[:, 1]) / 1e6))
+                                         if len(stamps) else None)}),
           flush=True)
 
 
@@ -112,8 +115,8 @@ def _pace(start: float, sent: int, rate_hz: float | None) -> None:
 def run_publisher(mode: str, rate_hz: float | None = None) -> dict[str, float]:
     from vizzy_runtime import dds, msgs
     from vizzy_runtime.convert import numpy_to_image
-    child = subprocess.Popen([sys.executable, __file__, '--sub', mode], stdout=subprocess.PIPE, text=True,
-                             env={**os.environ})
+    child = subprocess.Popen([sys.executable, __file__, '--sub', mode], stdout=subprocess.PIPE,
+                             text=True, env={**os.environ})
     assert child.stdout is not None
     assert child.stdout.readline().strip() == 'ready'
     frame = np.random.default_rng(1).integers(0, 255, (H, W, 3), dtype=np.uint8)
@@ -196,7 +199,8 @@ def run_vendor_publisher() -> None:
     from vizzy_runtime.ros import Node, qos_profile_sensor_data, rclpy
     rclpy.init(args=[])
     node = Node('bench_vendor_pub')
-    msg = numpy_to_image(np.random.default_rng(1).integers(0, 255, (H, W, 3), dtype=np.uint8), 'rgb8')
+    msg = numpy_to_image(np.random.default_rng(1).integers(0, 255, (H, W, 3), dtype=np.uint8),
+                         'rgb8')
     pub = node.create_publisher(type(msg), VENDOR_TOPIC, qos_profile_sensor_data)
     deadline = time.monotonic() + 30
     while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
@@ -239,9 +243,11 @@ def vendor_figures() -> dict[str, object]:
     """image_hz_<pub>_to_<sub> and delivered_fraction_<pub>_to_<sub> for the four pairs."""
     if real_python() is None:
         skipped = REPO / '.venv-ros.skipped'
-        reason = skipped.read_text().strip() if skipped.is_file() else 'run `make setup` to create it'
+        reason = (skipped.read_text().strip() if skipped.is_file()
+                  else 'run `make setup` to create it')
         return {'vendor_pairs_skipped': f'no .venv-ros (the real rclpy): {reason}'}
-    figures: dict[str, object] = {'vendor_pairs_qos': 'sensor_data (best effort, keep last 5), flat out'}
+    figures: dict[str, object] = {
+        'vendor_pairs_qos': 'sensor_data (best effort, keep last 5), flat out'}
     for pub_runtime, sub_runtime in VENDOR_PAIRS:
         pair = run_vendor_pair(pub_runtime, sub_runtime)
         figures[f'image_hz_{pub_runtime}_to_{sub_runtime}'] = round(pair['image_hz'], 1)
@@ -279,11 +285,13 @@ def main() -> None:
     }
     summary.update(vendor_figures())
     print(f"runtime: {summary['image_hz']} Hz, p50 {summary['latency_ms_p50']} ms; raw cyclonedds: "
-          f"{summary['raw_cyclonedds_image_hz']} Hz, p50 {summary['raw_cyclonedds_latency_ms_p50']} ms",
+          f"{summary['raw_cyclonedds_image_hz']} Hz, "
+          f"p50 {summary['raw_cyclonedds_latency_ms_p50']} ms",
           file=sys.stderr, flush=True)
     if 'image_hz_bundled_to_real' in summary:
         print('VGA images/s, sensor-data QoS: ' + ', '.join(
-            f"{p}->{s} {summary[f'image_hz_{p}_to_{s}']}" for p, s in VENDOR_PAIRS), file=sys.stderr, flush=True)
+            f"{p}->{s} {summary[f'image_hz_{p}_to_{s}']}" for p, s in VENDOR_PAIRS),
+            file=sys.stderr, flush=True)
     print(json.dumps(summary), flush=True)
 
 

@@ -74,7 +74,10 @@ for _pkg in ('stereo_ses_node', 'foveation_node', 'vizzy_sim_bridge'):
 
 from stereo_ses_node.core.decision import choose_fixation, reachable_cells  # noqa: E402
 from stereo_ses_node.core.information import (  # noqa: E402
-    SearchMetrics, information_from_precision, local_information)
+    SearchMetrics,
+    information_from_precision,
+    local_information,
+)
 from stereo_ses_node.core.ses import GMM, SensoryEgoSphere  # noqa: E402
 from stereo_ses_node.core.stereo import StereoPipeline  # noqa: E402
 from stereo_ses_node.core.ut import StereoRig  # noqa: E402

@@ -31,6 +31,7 @@ for _v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(_v, '1')
 
 import matplotlib  # noqa: E402
+
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -60,10 +61,10 @@ def evaluate(frame, det, rng) -> dict[str, object]:
     """TP / FP / visible cylinders of one detection, and pose errors of the true positives."""
     owners = [label_cluster(frame, cl.points, rng) for cl in det.all_clusters]
     visible = {name for lab, pur, name in owners if lab == 1 and pur >= MIN_PURITY}
-    by_id = {id(cl): o for cl, o in zip(det.all_clusters, owners)}
+    by_id = {id(cl): o for cl, o in zip(det.all_clusters, owners, strict=True)}
     found, fp, errs = set(), 0, []
     objects = {o.name: o for o in frame.objects}
-    for cl, c in zip(det.clusters, det.cylinders):
+    for cl, c in zip(det.clusters, det.cylinders, strict=True):
         lab, pur, name = by_id[id(cl)]
         if lab == 1 and name not in found:
             found.add(name)
@@ -79,17 +80,22 @@ def evaluate(frame, det, rng) -> dict[str, object]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--frames', type=int, default=30, help='held-out frames (thesis: 200 real frames)')
-    ap.add_argument('--repeats', type=int, default=3, help='timed runs per frame and setting (median)')
+    ap.add_argument('--frames', type=int, default=30,
+                    help='held-out frames (thesis: 200 real frames)')
+    ap.add_argument('--repeats', type=int, default=3,
+                    help='timed runs per frame and setting (median)')
     ap.add_argument('--out', type=Path, default=Path(__file__).resolve().parent / 'results')
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
     clf = PatchClassifier.load()
     fit = FitParams(gmm=TABLE_4_1['mild'])
     renderer = SimRenderer()
-    times: dict[str, dict[str, list[float]]] = {s: {k: [] for k in STAGES + ('total',)} for s in ('with', 'without')}
-    cpu: dict[str, dict[str, list[float]]] = {s: {k: [] for k in STAGES + ('total',)} for s in ('with', 'without')}
-    quality = {s: {'tp': 0, 'fp': 0, 'visible': 0, 'dup': 0, 'errors': []} for s in ('with', 'without')}
+    times: dict[str, dict[str, list[float]]] = {s: {k: [] for k in STAGES + ('total',)}
+                                                for s in ('with', 'without')}
+    cpu: dict[str, dict[str, list[float]]] = {s: {k: [] for k in STAGES + ('total',)}
+                                              for s in ('with', 'without')}
+    quality = {s: {'tp': 0, 'fp': 0, 'visible': 0, 'dup': 0, 'errors': []}
+               for s in ('with', 'without')}
     scores, fitq, labels = [], [], []
     counts = []
     seed = HELD_OUT_SEED
@@ -105,7 +111,8 @@ def main(argv: list[str] | None = None) -> int:
                 runs = []
                 for _ in range(args.repeats):
                     t, tc = time.perf_counter(), time.process_time()
-                    det = detect_cylinders(frame.cloud, SEGMENT, fit, image=frame.image, classifier=c)
+                    det = detect_cylinders(frame.cloud, SEGMENT, fit, image=frame.image,
+                                           classifier=c)
                     runs.append((dict(det.timings_ms), 1e3 * (time.perf_counter() - t),
                                  dict(det.cpu_ms), 1e3 * (time.process_time() - tc)))
                 for k in STAGES:
@@ -126,7 +133,8 @@ def main(argv: list[str] | None = None) -> int:
             n += 1
             bar.update()
     renderer.close()
-    scores_a, fitq_a, labels_a = np.concatenate(scores), np.concatenate(fitq), np.concatenate(labels)
+    scores_a, fitq_a, labels_a = (np.concatenate(scores), np.concatenate(fitq),
+                                  np.concatenate(labels))
     table = {s: {k: round(float(np.mean(v)), 1) for k, v in times[s].items()} for s in times}
     table_cpu = {s: {k: round(float(np.mean(v)), 1) for k, v in cpu[s].items()} for s in cpu}
     det_quality = {}
@@ -149,9 +157,10 @@ def main(argv: list[str] | None = None) -> int:
         'avg_other_clusters': round(float(cnt[:, 1].mean()), 2),
         'table_4_2_ms': table,
         'table_4_2_cpu_ms': table_cpu,
-        'thesis_table_4_2_ms': {'without': {'segmentation': 15, 'identification': 213, 'total': 228},
-                                'with': {'segmentation': 15, 'classification': 64, 'identification': 70,
-                                         'total': 149}},
+        'thesis_table_4_2_ms': {'without': {'segmentation': 15, 'identification': 213,
+                                            'total': 228},
+                                'with': {'segmentation': 15, 'classification': 64,
+                                         'identification': 70, 'total': 149}},
         'detection': det_quality,
         'fig_4_8': {'patches': int(len(labels_a)), 'cylinders': int(labels_a.sum()),
                     'cnn_average_precision': round(average_precision(scores_a, labels_a), 4),
@@ -182,12 +191,14 @@ def main(argv: list[str] | None = None) -> int:
         bottom += v
     a2.set_xticks(x, ['no classifier', 'with classifier'])
     a2.set_ylabel('CPU ms per frame (mean of medians)')
-    a2.set_title(f'Table 4.2: {n} simulated frames, {cnt[:, 0].mean():.1f} cylinders + {cnt[:, 1].mean():.1f} others')
+    a2.set_title(f'Table 4.2: {n} simulated frames, {cnt[:, 0].mean():.1f} cylinders + '
+                 f'{cnt[:, 1].mean():.1f} others')
     a2.legend()
     fig.tight_layout()
     fig.savefig(args.out / 'cylinder_pipeline.png', dpi=110)
-    print(json.dumps({'table_4_2_ms': table, 'table_4_2_cpu_ms': table_cpu, 'detection': det_quality,
-                      'fig_4_8': result['fig_4_8'], 'load_average_1min': result['load_average_1min']}))
+    print(json.dumps({'table_4_2_ms': table, 'table_4_2_cpu_ms': table_cpu,
+                      'detection': det_quality, 'fig_4_8': result['fig_4_8'],
+                      'load_average_1min': result['load_average_1min']}))
     return 0
 
 

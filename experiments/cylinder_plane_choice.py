@@ -36,6 +36,7 @@ for _v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(_v, '1')
 
 import matplotlib  # noqa: E402
+
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -82,39 +83,50 @@ def main() -> None:
                 pitch = float(np.degrees(np.arcsin(-scene.up[2])))
                 for way in WAYS:
                     det = detect_cylinders(scene.cloud, params(way, scene.up), fit)
-                    table = det.plane is not None and abs(det.plane[3] - scene.table_height) < 0.02 \
+                    table = det.plane is not None \
+                        and abs(det.plane[3] - scene.table_height) < 0.02 \
                         and angle_deg(det.plane[:3], scene.up) < 3.0
                     found = 0
                     for base, r, hh in scene.cylinders:
                         centre = base + 0.5 * hh * scene.up
-                        if any(np.linalg.norm(np.array(c.centre) - centre) < 0.06 and abs(c.radius - r) < 0.3 * r
-                               for c in det.cylinders):
+                        if any(np.linalg.norm(np.array(c.centre) - centre) < 0.06
+                               and abs(c.radius - r) < 0.3 * r for c in det.cylinders):
                             found += 1
-                    clutter = sum(min(np.linalg.norm(np.array(c.centre) - k) for k in scene.clutter) < 0.3
+                    clutter = sum(min(np.linalg.norm(np.array(c.centre) - k)
+                                      for k in scene.clutter) < 0.3
                                   for c in det.cylinders)
-                    rows.append({'seed': seed, 'camera_height_m': h, 'wall_m': wall, 'pitch_deg': round(pitch, 1),
-                                 'way': way, 'table': bool(table), 'found': found, 'of': len(scene.cylinders),
-                                 'clutter_cylinders': int(clutter), 'cpu_ms': {k: det.stage_cpu_ms[k] for k in STAGES}})
+                    rows.append({'seed': seed, 'camera_height_m': h, 'wall_m': wall,
+                                 'pitch_deg': round(pitch, 1), 'way': way, 'table': bool(table),
+                                 'found': found, 'of': len(scene.cylinders),
+                                 'clutter_cylinders': int(clutter),
+                                 'cpu_ms': {k: det.stage_cpu_ms[k] for k in STAGES}})
     summary = {}
     for way in WAYS:
         r = [x for x in rows if x['way'] == way]
         summary[way] = {
             'scenes': len(r), 'table_chosen': round(float(np.mean([x['table'] for x in r])), 3),
             'table_cylinders_found': round(sum(x['found'] for x in r) / sum(x['of'] for x in r), 3),
-            'clutter_cylinders_per_scene': round(float(np.mean([x['clutter_cylinders'] for x in r])), 2),
-            'median_cpu_ms': {k: round(float(np.median([x['cpu_ms'][k] for x in r])), 1) for k in STAGES},
-            'table_chosen_by_pitch': {f'{p:.0f}': round(float(np.mean([x['table'] for x in r if x['pitch_deg'] == p])), 2)
-                                      for p in sorted({x['pitch_deg'] for x in r})}}
+            'clutter_cylinders_per_scene':
+                round(float(np.mean([x['clutter_cylinders'] for x in r])), 2),
+            'median_cpu_ms': {k: round(float(np.median([x['cpu_ms'][k] for x in r])), 1)
+                              for k in STAGES},
+            'table_chosen_by_pitch': {
+                f'{p:.0f}': round(float(np.mean([x['table'] for x in r if x['pitch_deg'] == p])), 2)
+                for p in sorted({x['pitch_deg'] for x in r})}}
     real = None
     if REAL.is_file():
         pts, _ = read_cloud(REAL)
         det = detect_cylinders(pts, SegmentParams(), fit)
         real = {'file': REAL.name, 'plane_height_m': round(float(det.plane[3]), 3),
-                'plane_angle_to_camera_up_deg': round(angle_deg(det.plane[:3], np.array([0.0, -1.0, 0.0])), 1),
-                'planes': det.planes, 'cpu_ms': {k: round(v, 1) for k, v in det.stage_cpu_ms.items()},
-                'cylinders': [{'radius_cm': round(100 * c.radius, 2), 'height_cm': round(100 * c.height, 1),
+                'plane_angle_to_camera_up_deg':
+                    round(angle_deg(det.plane[:3], np.array([0.0, -1.0, 0.0])), 1),
+                'planes': det.planes,
+                'cpu_ms': {k: round(v, 1) for k, v in det.stage_cpu_ms.items()},
+                'cylinders': [{'radius_cm': round(100 * c.radius, 2),
+                               'height_cm': round(100 * c.height, 1),
                                'range_m': round(float(np.linalg.norm(c.centre)), 2),
-                               'axis_to_plane_normal_deg': round(angle_deg(np.array(c.axis), det.plane[:3]), 1),
+                               'axis_to_plane_normal_deg':
+                                   round(angle_deg(np.array(c.axis), det.plane[:3]), 1),
                                'confidence': round(c.confidence, 3)} for c in det.cylinders]}
     OUT.mkdir(exist_ok=True)
     result = {'summary': summary, 'real': real, 'scenes': rows}
@@ -129,11 +141,14 @@ def main() -> None:
     ax.set_xlabel('camera pitch below horizontal (deg)')
     ax.set_ylabel('fraction of scenes where the table is chosen')
     ax.set_ylim(0, 1.05)
-    ax.set_title(f'Table plane in rooms with a back wall and floor clutter ({args.seeds} seeds x {len(WALLS)} walls)')
+    ax.set_title(f'Table plane in rooms with a back wall and floor clutter ({args.seeds} seeds x '
+                 f'{len(WALLS)} walls)')
     ax.legend(title='plane choice', loc='upper left', bbox_to_anchor=(1.0, 1.0))
     fig.tight_layout()
     fig.savefig(OUT / 'cylinder_plane_choice.png', dpi=110)
-    print(json.dumps({'summary': summary, 'real': None if real is None else {k: v for k, v in real.items() if k != 'planes'}}))
+    print(json.dumps({'summary': summary,
+                      'real': None if real is None
+                      else {k: v for k, v in real.items() if k != 'planes'}}))
 
 
 if __name__ == '__main__':

@@ -30,7 +30,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'foveation_node'))
 from foveation_node.core.foveation import PYRAMID_SIGMA_1, Foveator  # noqa: E402
 from foveation_node.core.information import (  # noqa: E402
-    FULL_SCALE_POWER, measured_information, predicted_information,
+    FULL_SCALE_POWER,
+    measured_information,
+    predicted_information,
 )
 from foveation_node.core.synthetic import pink_noise, to_uint8, white_noise  # noqa: E402
 

@@ -196,7 +196,6 @@ def main() -> int:
     def error(sel: np.ndarray, k: int) -> float:
         return float((sel >= k).mean())
 
-    centred = {'top1': [], 'top2': [], 'top5': []}
     result: dict = {'views': len(views), 'per_class': per_class, 'classes': list(CLASSES),
                     'f0_px': list(f0s), 'fixations_px': [list(map(float, f)) for f in fixations],
                     'image': [W, H], 'levels': LEVELS, 'threshold': 0.7, 'top_k': 5,
@@ -229,7 +228,7 @@ def main() -> int:
     dist = np.array([[np.hypot(f[0] - v.centre[0], f[1] - v.centre[1]) for f in fixations]
                      for v in views])                                    # (views, fixations)
     by_dist = []
-    for lo, hi in zip(DIST_BINS[:-1], DIST_BINS[1:]):
+    for lo, hi in zip(DIST_BINS[:-1], DIST_BINS[1:], strict=True):
         sel = (dist >= lo) & (dist < hi)                                  # (views, fixations)
         if not sel.any():
             continue
@@ -295,8 +294,12 @@ def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: floa
     from tqdm import tqdm
 
     from foveation_node.core.object_views import CLASSES
-    from foveation_node.core.tabletop_views import (DEFAULT_JOINTS, TabletopViews, object_at,
-                                                    random_joints)
+    from foveation_node.core.tabletop_views import (
+        DEFAULT_JOINTS,
+        TabletopViews,
+        object_at,
+        random_joints,
+    )
 
     rng = np.random.default_rng(seed0)
     foveator = Foveator(W, H, LEVELS, f0)
@@ -338,8 +341,9 @@ def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: floa
            'chance_uniform': 1.0 / len(CLASSES),
            'chance_commonest_class': float(true_hist.max() / len(r)),
            'final_labels': {c: int(n) for c, n in
-                            zip(CLASSES, np.bincount(r[:, 4], minlength=len(CLASSES)))},
-           'true_classes': {c: int(n) for c, n in zip(CLASSES, true_hist)}}
+                            zip(CLASSES, np.bincount(r[:, 4], minlength=len(CLASSES)),
+                                strict=True)},
+           'true_classes': {c: int(n) for c, n in zip(CLASSES, true_hist, strict=True)}}
     per_class = {}
     for i, c in enumerate(CLASSES):
         sel = r[:, 5] == i
@@ -363,11 +367,13 @@ def run_tabletop(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'foveated_recognition_tabletop.json').write_text(
         json.dumps(rounded(res), indent=1) + '\n')
-    print(f'tabletop: {res["views"]} views, {res["cases"]} two-pass cases in {res["seconds"]:.0f} s')
+    print(f'tabletop: {res["views"]} views, {res["cases"]} two-pass cases in '
+          f'{res["seconds"]:.0f} s')
     print(f'final label = class under its box: {res["final_accuracy"]:.3f} (centred '
           f'{res["final_accuracy_centred"]:.3f}, random fixation '
           f'{res["final_accuracy_random_fixation"]:.3f}); pass 1 {res["pass1_accuracy"]:.3f}; '
-          f'chance {res["chance_uniform"]:.3f} / commonest class {res["chance_commonest_class"]:.3f}')
+          f'chance {res["chance_uniform"]:.3f} / commonest class '
+          f'{res["chance_commonest_class"]:.3f}')
     print(f'final labels {res["final_labels"]}; true classes {res["true_classes"]}')
     print(json.dumps({'tabletop_final_accuracy': res['final_accuracy'],
                       'tabletop_pass1_accuracy': res['pass1_accuracy'],
@@ -398,8 +404,13 @@ def _worker_init(models: list[str]) -> None:
 
 def _folder_task(task: tuple) -> tuple:
     """One unit of work in a worker: ('pass1' | 'pass2' | 'loc', network, image index, ...)."""
-    from foveation_node.core.folder_recognition import (evaluate_image, fit, localisation_hits,
-                                                        paste, read_rgb)
+    from foveation_node.core.folder_recognition import (
+        evaluate_image,
+        fit,
+        localisation_hits,
+        paste,
+        read_rgb,
+    )
 
     kind, net, idx, path, label, opts = task
     clf, fovs = _WORKER['clfs'][net], _WORKER['fovs']
@@ -429,12 +440,12 @@ def _folder_task(task: tuple) -> tuple:
 
 def run_folder(args: argparse.Namespace) -> int:
     """Figs. 2.7-2.10 on a folder of labelled photographs with the classifiers of --models."""
-    import torch
-    from concurrent.futures import ProcessPoolExecutor
     import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
 
-    from foveation_node.core.folder_recognition import (FolderError, grid_fixations,
-                                                        load_folder)
+    import torch
+
+    from foveation_node.core.folder_recognition import FolderError, grid_fixations, load_folder
     from foveation_node.core.recognition import ModelError
 
     torch.set_num_threads(1)
@@ -444,7 +455,7 @@ def run_folder(args: argparse.Namespace) -> int:
     try:
         clfs = [Classifier(m, Path(m).with_suffix('.labels')) for m in args.models]
         labels = clfs[0].labels
-        for m, c in zip(args.models, clfs):
+        for m, c in zip(args.models, clfs, strict=True):
             if c.labels != labels:
                 raise ModelError(f'{m.with_suffix(".labels")}: labels differ from '
                                  f'{args.models[0].with_suffix(".labels")}')
@@ -459,7 +470,7 @@ def run_folder(args: argparse.Namespace) -> int:
                        args.out / f'{args.name}_example.png')
         return 0
     info = [{'name': n, 'model': m.name, 'input_size': list(c.preprocessing.input_size)}
-            for n, m, c in zip(names, args.models, clfs)]
+            for n, m, c in zip(names, args.models, clfs, strict=True)]
     del clfs
     size = args.size
     if args.quick:
@@ -576,7 +587,7 @@ def run_folder(args: argparse.Namespace) -> int:
                          f'{r[k]["pass2"]["top1_error"]:.3f}' for k in ('centred', 'off_centre')
                          if k in r)
         print(f'two passes ({names[p2]}), f0 {r["f0_px"]}: top-1 error {text}')
-    best = {n: min(zip(v['centred'], thresholds)) for n, v in
+    best = {n: min(zip(v['centred'], thresholds, strict=True)) for n, v in
             result['localisation']['error'].items()}
     print(f'localisation (f0 {LOC_F0:g}, centred): best error, th = {best}')
     summary = {f'{n}_top1_error_unfoveated':

@@ -156,11 +156,14 @@ def run(pub: str, qos: str, rate: float, duration: float, subs: tuple[str, ...] 
 
 def _run_pub(children: dict, pub: str, qos: str, rate: float, duration: float, nsubs: int) -> dict:
     python, env = _python(pub)
-    out = subprocess.run(_traced([python, __file__, '--role', 'pub', '--qos', qos, '--rate', str(rate),
-                                  '--duration', str(duration), '--subscribers', str(nsubs)],
+    out = subprocess.run(_traced([python, __file__, '--role', 'pub', '--qos', qos,
+                                  '--rate', str(rate), '--duration', str(duration),
+                                  '--subscribers', str(nsubs)],
                                  f'pub-{pub}'),
-                         env=env, stdout=subprocess.PIPE, text=True, timeout=duration + 90, check=True)
-    result = {'pub': pub, 'qos': qos, 'rate_hz': rate, **json.loads(out.stdout.strip().splitlines()[-1])}
+                         env=env, stdout=subprocess.PIPE, text=True, timeout=duration + 90,
+                         check=True)
+    result = {'pub': pub, 'qos': qos, 'rate_hz': rate,
+              **json.loads(out.stdout.strip().splitlines()[-1])}
     for runtime, child in children.items():
         stdout, _ = child.communicate('stop\n', timeout=30)
         got = json.loads(stdout.strip().splitlines()[-1])

@@ -54,10 +54,8 @@ from mot_planner_node.core.detector import Detections, HogDetector  # noqa: E402
 from mot_planner_node.core.metrics import summarize  # noqa: E402
 from mot_planner_node.core.motchallenge import find_sequences, load_sequence  # noqa: E402
 from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
-from mot_planner_node.core.simulated import (render, replay_detector_time,  # noqa: E402
-                                             track_synthetic)
-from mot_planner_node.core.tracker import (DEPLOYED, PROTOCOLS, MotTracker,  # noqa: E402
-                                           TrackerConfig)
+from mot_planner_node.core.simulated import render, replay_detector_time, track_synthetic  # noqa: E402
+from mot_planner_node.core.tracker import DEPLOYED, PROTOCOLS, MotTracker, TrackerConfig  # noqa: E402
 from mot_planner_node.evaluate import read_frame, run_sequence, timing_summary  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / 'results'

@@ -4,9 +4,9 @@
 Renders the procedural crowd (vizzy_sim_bridge.core.pedestrians) with MuJoCo offscreen from a
 camera near Vizzy's eye height looking forward (horizontal FOV 85.4 deg, 640x480 like the robot's
 cameras; --scene preview: a grey floor and a plain wall, camera --camera-height up; --scene sim:
-the simulator's pedestrians scene and head, its left camera at rest), runs cv2.HOGDescriptor with the default people detector (detectMultiScale, winStride
-(8, 8), scale 1.05, hitThreshold 0) on every frame, and matches detections to the ground truth
-from a segmentation render.
+the simulator's pedestrians scene and head, its left camera at rest), runs cv2.HOGDescriptor with
+the default people detector (detectMultiScale, winStride (8, 8), scale 1.05, hitThreshold 0) on
+every frame, and matches detections to the ground truth from a segmentation render.
 
 Ground truth per person and frame: the amodal image box (segmentation of the person rendered
 alone) and the visible fraction (its pixels in the full render / alone). A person counts for
@@ -43,7 +43,8 @@ def choose_gl() -> None:
     probe = 'import mujoco; mujoco.GLContext(8, 8).make_current()'
     for backend in ('egl', 'osmesa'):
         env = {**os.environ, 'MUJOCO_GL': backend}
-        if subprocess.run([sys.executable, '-c', probe], env=env, capture_output=True).returncode == 0:
+        if subprocess.run([sys.executable, '-c', probe], env=env,
+                          capture_output=True).returncode == 0:
             os.environ['MUJOCO_GL'] = backend
             return
     sys.exit('no offscreen OpenGL for MuJoCo: install libegl1 (EGL) or libosmesa6 (OSMesa)')
@@ -182,7 +183,8 @@ def main() -> int:
             rects, weights = hog.detectMultiScale(bgr, winStride=(8, 8), scale=1.05,
                                                   hitThreshold=0)
             det_ms.append(1e3 * (time.perf_counter() - t0))
-            dets = np.array([[x, y, x + w, y + h] for x, y, w, h in rects], dtype=float).reshape(-1, 4)
+            dets = np.array([[x, y, x + w, y + h] for x, y, w, h in rects],
+                            dtype=float).reshape(-1, 4)
             scores = np.asarray(weights, dtype=float).ravel()
             gts = [canonical(b) for b in boxes]
             m50 = greedy_match(dets, scores, gts, 0.5)
@@ -222,14 +224,15 @@ def main() -> int:
                     colour = (0, 200, 0) if counted[k] else (0, 220, 220)
                     x0, y0, x1, y1 = boxes[k].astype(int)
                     cv2.rectangle(bgr, (x0, y0), (x1, y1), colour, 1)
-                for d, sc in zip(dets.astype(int), scores):
+                for d, sc in zip(dets.astype(int), scores, strict=True):
                     cv2.rectangle(bgr, (d[0], d[1]), (d[2], d[3]), (0, 0, 255), 2)
                     cv2.putText(bgr, f'{sc:.1f}', (d[0] + 2, d[1] + 14), cv2.FONT_HERSHEY_SIMPLEX,
                                 0.45, (0, 0, 255), 1, cv2.LINE_AA)
                 cv2.putText(bgr, f'seed {seed} t={t:.2f}s', (6, args.height - 8),
                             cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
                 montage.append(bgr)
-        per_seed[str(seed)] = {**seed_stats, 'recall': seed_stats['hit50'] / max(1, seed_stats['counted']),
+        per_seed[str(seed)] = {**seed_stats,
+                               'recall': seed_stats['hit50'] / max(1, seed_stats['counted']),
                                'min_distance_m': crowd.min_distance}
         rgb_r.close()
         seg_r.close()

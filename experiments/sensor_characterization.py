@@ -200,7 +200,7 @@ def plot(result: dict, depths: np.ndarray, vergences: np.ndarray, path: Path) ->
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
     vsel = [j for j, v in enumerate(np.degrees(vergences)) if round(v) in (0, 12, 24, 40, 60, 80)]
     colors = plt.cm.viridis(np.linspace(0, 0.9, max(len(vsel), 2)))
-    for c, j in zip(colors, vsel):
+    for c, j in zip(colors, vsel, strict=False):   # at least 2 colours: may be more
         lab = f'{np.degrees(vergences[j]):.0f} deg'
         axes[0].plot(depths, lp[:, j], '-', color=c, label=f'log-polar {lab}')
         axes[0].plot(depths, ca[:, j], '--', color=c, label=f'Cartesian {lab}')
@@ -210,7 +210,7 @@ def plot(result: dict, depths: np.ndarray, vergences: np.ndarray, path: Path) ->
     axes[0].legend(fontsize=6, ncol=2)
     dsel = [i for i, d in enumerate(depths) if round(d, 2) in (0.2, 0.5, 1.0, 1.5, 2.0)]
     colors = plt.cm.plasma(np.linspace(0, 0.85, max(len(dsel), 2)))
-    for c, i in zip(colors, dsel):
+    for c, i in zip(colors, dsel, strict=False):
         axes[1].plot(np.degrees(vergences), lp[i], '-', color=c,
                      label=f'log-polar {depths[i]:.1f} m')
         axes[1].plot(np.degrees(vergences), ca[i], '--', color=c,

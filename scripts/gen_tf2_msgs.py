@@ -21,7 +21,8 @@ PACKAGE_XML = f'''<?xml version="1.0"?>
 <package format="3">
   <name>{PACKAGE}</name>
   <version>{VERSION}</version>
-  <description>tf2 messages, generated from the ROS 2 Jazzy definitions for the Vizzy real-rclpy venv.</description>
+  <description>tf2 messages, generated from the ROS 2 Jazzy definitions for the Vizzy
+    real-rclpy venv.</description>
   <maintainer email="vizzy@example.com">Vizzy active vision maintainers</maintainer>
   <license>BSD-3-Clause</license>
   <buildtool_depend>ament_cmake</buildtool_depend>
@@ -63,7 +64,8 @@ def main(argv: list[str]) -> int:
     typestore = get_typestore(Stores.ROS2_JAZZY)
     names = sorted(t for t in typestore.types if t.startswith(f'{PACKAGE}/msg/'))
     if not names:
-        print(f'gen_tf2_msgs: no {PACKAGE} messages in the rosbags Jazzy typestore', file=sys.stderr)
+        print(f'gen_tf2_msgs: no {PACKAGE} messages in the rosbags Jazzy typestore',
+              file=sys.stderr)
         return 1
     (out / 'msg').mkdir(parents=True, exist_ok=True)
     files = []
@@ -72,7 +74,8 @@ def main(argv: list[str]) -> int:
         (out / 'msg' / f'{short}.msg').write_text(message_text(typestore, name))
         files.append(f'"msg/{short}.msg"')
     (out / 'package.xml').write_text(PACKAGE_XML)
-    (out / 'CMakeLists.txt').write_text(CMAKELISTS.format(package=PACKAGE, files='\n  '.join(files)))
+    cmake = CMAKELISTS.format(package=PACKAGE, files='\n  '.join(files))
+    (out / 'CMakeLists.txt').write_text(cmake)
     print(f'gen_tf2_msgs: {", ".join(names)} -> {out}')
     return 0
 

@@ -9,7 +9,8 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     # the default recognition model (trained by train_classifier.py) travels with the package
-    package_data={package_name: ['models/*.pt', 'models/*.labels', 'models/*.json', 'models/*.txt']},
+    package_data={package_name: ['models/*.pt', 'models/*.labels', 'models/*.json',
+                                 'models/*.txt']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -13,7 +13,8 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
         ('share/' + package_name + '/config',
-         glob('config/*.yaml') + glob('config/*.xml') + glob('config/*.json') + glob('config/*.rviz')),
+         glob('config/*.yaml') + glob('config/*.xml') + glob('config/*.json')
+         + glob('config/*.rviz')),
     ],
     # The loopback-bind LD_PRELOAD shim (csrc/loopback_bind.c; see vizzy_runtime/loopback.py): built
     # like an extension so that pip and colcon compile it, never imported. Optional: without a C

@@ -12,7 +12,8 @@ organized .pcd (WIDTH x HEIGHT = POINTS) with colour gives the image for the pre
 classifier (section 4.3.2); --image gives one for any organized cloud; --no-classifier turns it
 off. Output (stdout, strict JSON): {"cylinders": [{centre, axis, radius, height, confidence,
 probability, axis_to_table_normal_deg, ...}], "table": {...}, "planes": [...], "cpu_ms": {load,
-downsample, plane, clusters, classification, fitting, total}, "wall_ms": {the same}, "messages": [...]};
+downsample, plane, clusters, classification, fitting, total}, "wall_ms": {the same}, "messages":
+[...]};
 stderr: the messages and one line of CPU time per stage.
 Exit status 0 (with an empty list when nothing is found); 2 with one line on stderr when a file
 cannot be read (missing, a directory, not .pcd/.ply, truncated, not what its header says, no
@@ -62,7 +63,7 @@ def vector3(text: str) -> tuple[float, float, float]:
         v = ()
     if len(v) != 3 or not all(np.isfinite(v)) or not any(v):
         raise argparse.ArgumentTypeError(f'{text!r} is not a non-zero vector x,y,z')
-    return v  # type: ignore[return-value]
+    return v
 
 
 def positive(kind: type) -> Any:
@@ -89,14 +90,16 @@ def strict(value: Any) -> Any:
 
 
 def load_points(path: Path) -> np.ndarray:
-    """The xyz points (N, 3) of a .pcd/.ply file (Open3D). Raises ValueError with a clear message."""
+    """The xyz points (N, 3) of a .pcd/.ply file (Open3D). Raises ValueError with a clear
+    message."""
     return load_cloud(path)[0].reshape(-1, 3)
 
 
 def load_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """(points, image): points (H, W, 3) for an organized .pcd (WIDTH x HEIGHT = POINTS, HEIGHT > 1),
-    else (N, 3); image (H, W, 3) uint8 RGB from an organized cloud's colours, else None.
-    Raises ValueError (core.cloudfile.CloudFileError) with a one-line message naming the file."""
+    """(points, image): points (H, W, 3) for an organized .pcd (WIDTH x HEIGHT = POINTS,
+    HEIGHT > 1), else (N, 3); image (H, W, 3) uint8 RGB from an organized cloud's colours, else
+    None. Raises ValueError (core.cloudfile.CloudFileError) with a one-line message naming the
+    file."""
     return read_cloud(path)
 
 
@@ -106,7 +109,7 @@ def plot_patches(image: np.ndarray, det: Detection, out: Path) -> None:
     import cv2
     img = np.ascontiguousarray(image[..., ::-1])
     fitted = {id(c) for c in det.clusters}
-    for cl, p in zip(det.all_clusters, det.cluster_probabilities):
+    for cl, p in zip(det.all_clusters, det.cluster_probabilities, strict=True):
         if cl.patch is None:
             continue
         u0, v0, u1, v1 = cl.patch
@@ -114,13 +117,15 @@ def plot_patches(image: np.ndarray, det: Detection, out: Path) -> None:
         colour = (0, 200, 0) if id(cl) in fitted else ((0, 0, 230) if rejected else (0, 140, 255))
         cv2.rectangle(img, (u0, v0), (u1 - 1, v1 - 1), colour, 2)
         if p is not None:
-            cv2.putText(img, f'{p:.2f}', (u0, max(v0 - 4, 12)), cv2.FONT_HERSHEY_SIMPLEX, 0.5, colour, 1, cv2.LINE_AA)
+            cv2.putText(img, f'{p:.2f}', (u0, max(v0 - 4, 12)), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                        colour, 1, cv2.LINE_AA)
     try:
         ok = cv2.imwrite(str(out), img)
     except cv2.error:                      # no writer for the suffix
         ok = False
     if not ok:
-        raise OSError(f'{out}: OpenCV could not write it (a folder, no permission, or an unknown suffix)')
+        raise OSError(f'{out}: OpenCV could not write it (a folder, no permission, or an '
+                      f'unknown suffix)')
 
 
 def plot_detection(points: np.ndarray, det: Detection, out: Path, max_points: int = 40000) -> None:
@@ -157,10 +162,12 @@ def plot_detection(points: np.ndarray, det: Detection, out: Path, max_points: in
         v = np.cross(a, u)
         th = np.linspace(0, 2 * np.pi, 40)
         for s in np.linspace(-0.5, 0.5, 5):
-            ring = tf(np.array(c.centre) + s * c.height * a + c.radius * (np.outer(np.cos(th), u) + np.outer(np.sin(th), v)))
+            ring = tf(np.array(c.centre) + s * c.height * a
+                      + c.radius * (np.outer(np.cos(th), u) + np.outer(np.sin(th), v)))
             ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color=plt.cm.RdYlGn(c.confidence), lw=1.5)
         top = tf(np.array(c.centre))
-        ax.text(top[0], top[1], top[2] + c.height / 2 + 0.03, f'r={c.radius * 100:.1f}cm p={c.confidence:.2f}')
+        ax.text(top[0], top[1], top[2] + c.height / 2 + 0.03,
+                f'r={c.radius * 100:.1f}cm p={c.confidence:.2f}')
     ax.set_xlabel('x (m)')
     ax.set_ylabel('y (m)')
     ax.set_zlabel('up (m)' if det.plane is not None else '-y (m)')
@@ -186,22 +193,27 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--radius-min', type=positive(float), default=0.01)
     ap.add_argument('--radius-max', type=positive(float), default=0.1)
     ap.add_argument('--min-confidence', type=float, default=0.5, help='Eq. 4.4 threshold')
-    ap.add_argument('--voxel', type=positive(float), default=0.01, help='downsampling (m) for plane and clusters')
+    ap.add_argument('--voxel', type=positive(float), default=0.01,
+                    help='downsampling (m) for plane and clusters')
     ap.add_argument('--min-cluster-points', type=positive(int), default=30)
-    ap.add_argument('--max-range', type=positive(float), default=None, help='ignore points farther than this (m)')
+    ap.add_argument('--max-range', type=positive(float), default=None,
+                    help='ignore points farther than this (m)')
     ap.add_argument('--up', type=vector3, default=CAMERA_UP, metavar='X,Y,Z',
                     help='"up" (against gravity) in the cloud\'s frame; default 0,-1,0: a camera '
                          'optical frame (y down)')
     ap.add_argument('--up-tolerance', type=positive(float), default=60.0, metavar='DEG',
-                    help='largest angle between the table\'s normal and --up, below 90 (default 60: '
-                         'a camera looking down up to 60 degrees)')
+                    help='largest angle between the table\'s normal and --up, below 90 '
+                         '(default 60: a camera looking down up to 60 degrees)')
     ap.add_argument('--any-plane', action='store_true',
                     help='ignore --up: the largest plane of any orientation with objects on it')
-    ap.add_argument('--plot', type=Path, default=None, help='save a PNG render of the cloud and cylinders')
+    ap.add_argument('--plot', type=Path, default=None,
+                    help='save a PNG render of the cloud and cylinders')
     ap.add_argument('--image', type=Path, default=None,
                     help='colour image of an organized cloud (same size) for the classifier')
-    ap.add_argument('--no-classifier', action='store_true', help='fit every cluster (no pre-attention CNN)')
-    ap.add_argument('--classifier-model', type=Path, default=None, help='classifier weights (default: packaged)')
+    ap.add_argument('--no-classifier', action='store_true',
+                    help='fit every cluster (no pre-attention CNN)')
+    ap.add_argument('--classifier-model', type=Path, default=None,
+                    help='classifier weights (default: packaged)')
     ap.add_argument('--classifier-threshold', type=float, default=0.5)
     ap.add_argument('--plot-patches', type=Path, default=None,
                     help='save the image with each cluster\'s patch and classifier probability')
@@ -211,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
 def angle_deg(a: Any, b: Any) -> float:
     """Angle between two directions (sign ignored), degrees."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    c = abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b))
+    c = float(abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b)))
     return math.degrees(math.acos(min(1.0, c)))
 
 
@@ -220,7 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         if args.radius_min >= args.radius_max:
-            raise ValueError(f'--radius-min {args.radius_min} must be below --radius-max {args.radius_max}')
+            raise ValueError(f'--radius-min {args.radius_min} must be below '
+                             f'--radius-max {args.radius_max}')
         if not args.up_tolerance < 90.0:
             raise ValueError(f'--up-tolerance {args.up_tolerance:g} must be below 90 degrees')
         for out in (args.plot, args.plot_patches):
@@ -229,8 +242,9 @@ def main(argv: list[str] | None = None) -> int:
         seg = SegmentParams(voxel_size=args.voxel, min_cluster_points=args.min_cluster_points,
                             max_range=args.max_range, up=None if args.any_plane else args.up,
                             up_tolerance_deg=args.up_tolerance)
-        fit = FitParams(method=args.method, gmm=TABLE_4_1[args.bias], n_directions=args.n_directions,
-                        radius_min=args.radius_min, radius_max=args.radius_max, min_confidence=args.min_confidence)
+        fit = FitParams(method=args.method, gmm=TABLE_4_1[args.bias],
+                        n_directions=args.n_directions, radius_min=args.radius_min,
+                        radius_max=args.radius_max, min_confidence=args.min_confidence)
         pts, image = load_cloud(args.cloud)
         if args.image is not None:
             import cv2
@@ -244,8 +258,9 @@ def main(argv: list[str] | None = None) -> int:
     load_wall, load_cpu = 1e3 * (time.perf_counter() - t0), 1e3 * (time.process_time() - c0)
     classifier = None
     if not args.no_classifier and image is not None:
-        from .core.classifier import PatchClassifier
         import torch
+
+        from .core.classifier import PatchClassifier
         torch.set_num_threads(1)         # a ~60k-parameter CNN on a few patches (as the node)
         try:
             classifier = PatchClassifier.load(args.classifier_model)
@@ -262,10 +277,13 @@ def main(argv: list[str] | None = None) -> int:
     flat = pts.reshape(-1, 3)
     table = None
     if det.plane is not None:
-        table = {'normal': [round(float(v), 5) for v in det.plane[:3]], 'height_m': round(float(det.plane[3]), 4),
-                 'angle_to_up_deg': None if seg.up is None else round(angle_deg(det.plane[:3], seg.up), 2)}
+        table = {'normal': [round(float(v), 5) for v in det.plane[:3]],
+                 'height_m': round(float(det.plane[3]), 4),
+                 'angle_to_up_deg': (None if seg.up is None
+                                     else round(angle_deg(det.plane[:3], seg.up), 2))}
     cylinders = []
-    for c, p in zip(det.cylinders, det.probabilities):
+    for c, p in zip(det.cylinders, det.probabilities, strict=True):
+        assert det.plane is not None   # cylinders are fitted only on a table plane
         d = dict(c.to_dict(), probability=p)
         d['axis_to_table_normal_deg'] = round(angle_deg(c.axis, det.plane[:3]), 2)
         d['range_m'] = round(float(np.linalg.norm(c.centre)), 3)
@@ -273,10 +291,12 @@ def main(argv: list[str] | None = None) -> int:
     result = {'file': str(args.cloud), 'method': args.method, 'bias': args.bias,
               'n_points': int(np.all(np.isfinite(flat), axis=1).sum()) if len(flat) else 0,
               'organized': pts.ndim == 3, 'classifier': classifier is not None,
-              'up': None if seg.up is None else list(seg.up), 'up_tolerance_deg': seg.up_tolerance_deg,
+              'up': None if seg.up is None else list(seg.up),
+              'up_tolerance_deg': seg.up_tolerance_deg,
               'table': table, 'planes': det.planes,
               'n_clusters': det.n_clusters, 'rejected_by_classifier': det.rejected_by_classifier,
-              'cluster_probabilities': [None if p is None else round(p, 4) for p in det.cluster_probabilities],
+              'cluster_probabilities': [None if p is None else round(p, 4)
+                                        for p in det.cluster_probabilities],
               'cylinders': cylinders,
               'cpu_ms': {k: round(cpu.get(k, 0.0), 1) for k in STAGES},
               'wall_ms': {k: round(wall.get(k, 0.0), 1) for k in STAGES}, 'messages': det.messages}
@@ -288,7 +308,8 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as e:     # e.g. an unwritable file, an unknown image suffix
         print(f'{PROG}: cannot save the plot: {" ".join(str(e).split())}', file=sys.stderr)
         return 2
-    stages = ', '.join(f'{k} {"skipped" if k == "classification" and classifier is None else f"{cpu.get(k, 0.0):.1f}"}'
+    stages = ', '.join(f'{k} skipped' if k == 'classification' and classifier is None
+                       else f'{k} {cpu.get(k, 0.0):.1f}'
                        for k in STAGES)
     print(f'{PROG}: {args.cloud}: {len(det.cylinders)} cylinder(s); CPU ms: {stages} '
           f'(wall total {wall["total"]:.1f} ms)', file=sys.stderr)

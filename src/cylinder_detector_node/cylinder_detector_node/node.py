@@ -70,17 +70,35 @@ import torch
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
-from cylinder_detector_node.core.fitting import METHODS, Cylinder as FittedCylinder, FitParams
+from cylinder_detector_node.core.fitting import METHODS, FitParams
+from cylinder_detector_node.core.fitting import Cylinder as FittedCylinder
 from cylinder_detector_node.core.overlay import draw_cylinders, intrinsics_from_organized
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import CAMERA_UP, SegmentParams
-from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
-    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING, image_refusal, image_to_numpy, numpy_to_image, pointcloud2_dtype,
-    pointcloud2_to_array)
+from vizzy_runtime.convert import (  # noqa: F401 (the image reasons: counter keys, re-exported)
+    EMPTY_IMAGE,
+    IMAGE_REASONS,
+    SHORT_DATA,
+    SHORT_STEP,
+    TOO_LARGE,
+    UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING,
+    image_refusal,
+    image_to_numpy,
+    numpy_to_image,
+    pointcloud2_dtype,
+    pointcloud2_to_array,
+)
 from vizzy_runtime.input_health import InputHealth
-from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
-                                      main_for, publish_from_thread, replace_timer)
+from vizzy_runtime.node_tools import (
+    LatestWorker,
+    Param,
+    declare_parameters,
+    guarded,
+    main_for,
+    publish_from_thread,
+    replace_timer,
+)
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 
@@ -190,7 +208,8 @@ def pipeline_params(p: dict[str, Any]) -> tuple[SegmentParams, FitParams]:
     return seg, fit
 
 
-def up_in_frame(buffer: TransformBuffer, up_frame: str, cloud_frame: str) -> tuple[float, float, float]:
+def up_in_frame(buffer: TransformBuffer, up_frame: str,
+                cloud_frame: str) -> tuple[float, float, float]:
     """+z of up_frame expressed in cloud_frame (the latest transform); LookupError if tf has no
     chain between the two frames."""
     rot = buffer.lookup_transform(up_frame, cloud_frame)[:3, :3]   # cloud -> up_frame
@@ -281,7 +300,7 @@ def cylinder_array(header: Any, cylinders: list[FittedCylinder],
                    probabilities: list[float | None] | None = None) -> Any:
     out = CylinderArray(header=header)
     probabilities = probabilities or [None] * len(cylinders)
-    for i, (c, p) in enumerate(zip(cylinders, probabilities)):
+    for i, (c, p) in enumerate(zip(cylinders, probabilities, strict=True)):
         m = CylinderMsg(id=i, label='cylinder', radius=float(c.radius), height=float(c.height),
                         confidence=float(c.confidence if p is None else p),
                         fit_quality=float(c.confidence))
@@ -299,11 +318,12 @@ def marker_array(header: Any, cylinders: list[FittedCylinder],
     clear.header = header
     out.markers.append(clear)
     probabilities = probabilities or [None] * len(cylinders)
-    for i, (c, p) in enumerate(zip(cylinders, probabilities)):
+    for i, (c, p) in enumerate(zip(cylinders, probabilities, strict=True)):
         conf = float(np.clip(c.confidence if p is None else p, 0.0, 1.0))
         body = Marker(ns='cylinders', id=i, type=Marker.CYLINDER, action=Marker.ADD)
         body.header = header
-        body.pose.position.x, body.pose.position.y, body.pose.position.z = (float(v) for v in c.centre)
+        (body.pose.position.x, body.pose.position.y,
+         body.pose.position.z) = (float(v) for v in c.centre)
         q = quaternion_z_to(np.array(c.axis))
         (body.pose.orientation.x, body.pose.orientation.y, body.pose.orientation.z,
          body.pose.orientation.w) = q
@@ -314,7 +334,8 @@ def marker_array(header: Any, cylinders: list[FittedCylinder],
         label = Marker(ns='cylinder_labels', id=i, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD)
         label.header = header
         top = np.array(c.centre) + (0.5 * c.height + 0.03) * np.array(c.axis)
-        label.pose.position.x, label.pose.position.y, label.pose.position.z = (float(v) for v in top)
+        (label.pose.position.x, label.pose.position.y,
+         label.pose.position.z) = (float(v) for v in top)
         label.pose.orientation.w = 1.0
         label.scale.z = 0.03
         label.color.r = label.color.g = label.color.b = label.color.a = 1.0
@@ -345,7 +366,8 @@ class CylinderDetectorNode(Node):
 
         self._lock = threading.Lock()
         self._images: list[Any] = []        # the last IMAGE_BUFFER images (under _lock)
-        torch.set_num_threads(1)            # a ~60k-parameter CNN on a few patches: threads only contend
+        # a ~60k-parameter CNN on a few patches: threads only contend
+        torch.set_num_threads(1)
         self.classifier: PatchClassifier | None = None
         self.last_classified = False        # whether the last cloud went through the classifier
         self._load_classifier()
@@ -376,12 +398,14 @@ class CylinderDetectorNode(Node):
         self._worker = LatestWorker('cylinder_detector', guarded(
             self, 'failed on a cloud', self.process_cloud, topic=self._cloud_topic))
         p = self._p
+        classifier = (f'on (threshold {p["classifier_threshold"]:g}, images from '
+                      f'{self._image_sub.topic_name})' if p['use_classifier'] else 'off')
         self.get_logger().info(
             f'detecting cylinders in {self._cloud_sub.topic_name} onto {self._pub.topic_name} and '
             f'{self._marker_pub.topic_name}: '
             f'method {p["method"]}, bias {p["bias"]}, N_d {p["n_directions"]}, radius '
-            f'{p["radius_min_m"]:g}-{p["radius_max_m"]:g} m, min confidence {p["min_confidence"]:g}, '
-            f'classifier {"on (threshold %g, images from %s)" % (p["classifier_threshold"], self._image_sub.topic_name) if p["use_classifier"] else "off"}')
+            f'{p["radius_min_m"]:g}-{p["radius_max_m"]:g} m, '
+            f'min confidence {p["min_confidence"]:g}, classifier {classifier}')
 
     # --- inputs ---------------------------------------------------------------------------------
 
@@ -510,7 +534,8 @@ class CylinderDetectorNode(Node):
         if k is None:
             return
         publish_from_thread(self, self._overlay_pub,
-                            numpy_to_image(draw_cylinders(image, k, cylinders), 'rgb8', header=header))
+                            numpy_to_image(draw_cylinders(image, k, cylinders), 'rgb8',
+                                           header=header))
 
     def cloud_up(self, cloud_frame: str) -> tuple[float, float, float]:
         """Up (against gravity) in cloud_frame: up_frame's +z from tf, else the frame's -y."""
@@ -520,8 +545,8 @@ class CylinderDetectorNode(Node):
             try:
                 up = up_in_frame(self.tf_buffer, up_frame, cloud_frame)
             except LookupError as exc:
-                self._warn_throttled('up', f'{self._cloud_topic}: taking -y of {cloud_frame!r} as up '
-                                           f'(camera optical frame): {exc}')
+                self._warn_throttled('up', f'{self._cloud_topic}: taking -y of {cloud_frame!r} '
+                                           f'as up (camera optical frame): {exc}')
         self.last_up = up
         return up
 
@@ -539,11 +564,13 @@ class CylinderDetectorNode(Node):
         self._last_report = now
         times, self._frame_ms = self._frame_ms, []
         stages = ', '.join(f'{k} {v:.0f}' for k, v in det.stage_cpu_ms.items())
-        found = ', '.join(f'r {100 * c.radius:.1f} cm h {100 * c.height:.1f} cm p {c.confidence:.2f}'
+        found = ', '.join(f'r {100 * c.radius:.1f} cm h {100 * c.height:.1f} cm '
+                          f'p {c.confidence:.2f}'
                           for c in det.cylinders) or 'none'
         self.get_logger().info(
-            f'{shape[1]}x{shape[0]} clouds in {np.median(times):.0f} ms median, {max(times):.0f} max '
-            f'over {len(times)} (last, CPU: {stages} ms): {len(det.cylinders)} cylinder(s) '
+            f'{shape[1]}x{shape[0]} clouds in {np.median(times):.0f} ms median, '
+            f'{max(times):.0f} max over {len(times)} (last, CPU: {stages} ms): '
+            f'{len(det.cylinders)} cylinder(s) '
             f'({found}), {det.rejected_by_classifier} cluster(s) rejected by the classifier, '
             f'{det.rejected} by Eq. 4.4; {self.frames_processed} clouds '
             f'processed, {self.frames_dropped} dropped while busy')

@@ -1,9 +1,11 @@
-"""Labelled patches the thesis's way (section 4.3.2): simulated tabletop scenes, our 3D segmentation,
-each cluster's image box cut out of the RGB image, labelled by the scene's ground truth.
+"""Labelled patches the thesis's way (section 4.3.2): simulated tabletop scenes, our 3D
+segmentation, each cluster's image box cut out of the RGB image, labelled by the scene's ground
+truth.
 
-Labels: each cluster point goes to the object whose surface is nearest; the cluster takes the majority object's shape (cylinder or not) and keeps
-that majority fraction as its purity. Clusters far from every object (> 3 cm median) or merging
-objects (purity < MIN_PURITY) are kept with their purity so callers can drop them.
+Labels: each cluster point goes to the object whose surface is nearest; the cluster takes the
+majority object's shape (cylinder or not) and keeps that majority fraction as its purity. Clusters
+far from every object (> 3 cm median) or merging objects (purity < MIN_PURITY) are kept with their
+purity so callers can drop them.
 
 Alongside each patch: the Eq. 4.4 fit quality of the same cluster (the baseline of Fig. 4.8),
 fitted the pipeline's way (table frame, mild prior, no confidence threshold).
@@ -37,7 +39,8 @@ class FramePatches:
     names: list[str]                  #: the majority object's name
 
 
-def label_cluster(frame: SimFrame, pts: NDArray[np.float64], rng: np.random.Generator) -> tuple[int, float, str]:
+def label_cluster(frame: SimFrame, pts: NDArray[np.float64],
+                  rng: np.random.Generator) -> tuple[int, float, str]:
     """(label, purity, object name) of a cluster: its points vote for the object with the nearest
     surface; purity 0 when the majority object's median distance is above MAX_MEDIAN_DISTANCE."""
     if len(pts) > 200:
@@ -62,6 +65,7 @@ def frame_patches(frame: SimFrame, seed: int = 0) -> FramePatches:
         for cl in seg.clusters:
             lab, pur, name = label_cluster(frame, cl.points, rng)
             c = fit_cylinder(cl.points @ rot.T, BASELINE_FIT, directions)
+            assert cl.patch is not None   # the frames are organized: every cluster has a box
             patches.append(extract_patch(frame.image, cl.patch))
             labels.append(lab)
             purity.append(pur)
@@ -69,4 +73,5 @@ def frame_patches(frame: SimFrame, seed: int = 0) -> FramePatches:
             names.append(name)
     s = 64 if not patches else patches[0].shape[0]
     return FramePatches(np.stack(patches) if patches else np.zeros((0, s, s, 3), np.uint8),
-                        np.asarray(labels, np.int64), np.asarray(purity), np.asarray(quality), names)
+                        np.asarray(labels, np.int64), np.asarray(purity), np.asarray(quality),
+                        names)

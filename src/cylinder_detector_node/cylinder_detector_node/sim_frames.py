@@ -40,6 +40,7 @@ class SimObject:
         """Distance of each (N, 3) point to the object's surface (0 inside)."""
         v = np.asarray(pts, float).reshape(-1, 3) - self.centre
         if self.is_cylinder and self.axis is not None:
+            assert self.radius is not None and self.height is not None   # set for cylinders
             t = np.clip(v @ self.axis, -0.5 * self.height, 0.5 * self.height)
             return np.maximum(np.linalg.norm(v - t[:, None] * self.axis, axis=1) - self.radius, 0.0)
         if self.shape == 'sphere':
@@ -78,13 +79,19 @@ class SimRenderer:
         self._sim: Any = None
         self._data: Any = None
 
-    def frame(self, seed: int, joints: tuple[float, ...] = DEFAULT_JOINTS, noise_seed: int | None = None,
-              depth_noise: float | None = None) -> SimFrame:
+    def frame(self, seed: int, joints: tuple[float, ...] = DEFAULT_JOINTS,
+              noise_seed: int | None = None, depth_noise: float | None = None) -> SimFrame:
         """tabletop(seed) seen by the RGB-D camera with the head at `joints` (JOINT_NAMES order,
         radians); depth noise seeded by (seed, noise_seed), coefficient depth_noise (default the
         Xtion's; 0 = none). RuntimeError if the scene builder cannot place the seed's objects."""
         import mujoco
-        from vizzy_sim_bridge.core.kinematics import JOINT_NAMES, RGBD_FRAME, frames_in_base, rotation_matrix
+
+        from vizzy_sim_bridge.core.kinematics import (
+            JOINT_NAMES,
+            RGBD_FRAME,
+            frames_in_base,
+            rotation_matrix,
+        )
         from vizzy_sim_bridge.core.model import HeadSimulation
         from vizzy_sim_bridge.core.render import CameraRenderer
         from vizzy_sim_bridge.core.rgbd import XTION_SIGMA_COEFFICIENT, DepthProjector, noisy_depth
@@ -99,17 +106,20 @@ class SimRenderer:
             self._scene, self._sim, self._model_key = scene, sim, seed
             self._data = mujoco.MjData(sim.model)
         scene, sim, data = self._scene, self._sim, self._data
-        q = dict(zip(JOINT_NAMES, joints))
+        q = dict(zip(JOINT_NAMES, joints, strict=True))
         data.qpos[:] = sim.data.qpos
         data.qpos[sim.qpos_adr] = np.asarray(joints, float)
         mujoco.mj_forward(sim.model, data)
-        rgb, depth = self._renderer.render(data, 'rgbd_camera', depth=True, width=self.width, height=self.height)
-        rng = np.random.default_rng(np.random.SeedSequence([seed, 99 if noise_seed is None else noise_seed]))
+        rgb, depth = self._renderer.render(data, 'rgbd_camera', depth=True, width=self.width,
+                                           height=self.height)
+        rng = np.random.default_rng(
+            np.random.SeedSequence([seed, 99 if noise_seed is None else noise_seed]))
         coeff = XTION_SIGMA_COEFFICIENT if depth_noise is None else depth_noise
         z = noisy_depth(depth, rng if coeff > 0 else None, coeff)
         packed = DepthProjector(self.k, self.width, self.height).cloud(z, rgb)
         cloud = np.stack([packed['x'], packed['y'], packed['z']], axis=-1).astype(np.float64)
-        # ground truth: base_link -> camera optical frame (the sim's joints equal the targets at t=0)
+        # ground truth: base_link -> camera optical frame (the sim's joints equal the targets at
+        # t=0)
         t_cam = frames_in_base(q)[RGBD_FRAME]
         r_cb, p_cb = t_cam[:3, :3].T, -t_cam[:3, :3].T @ t_cam[:3, 3]
         objects = []
@@ -117,7 +127,8 @@ class SimRenderer:
             if o.name == 'table' or o.role == 'support':
                 continue
             axis = None if o.axis is None else r_cb @ np.asarray(o.axis, float)
-            objects.append(SimObject(o.name, o.shape, r_cb @ np.asarray(o.position, float) + p_cb, axis,
+            objects.append(SimObject(o.name, o.shape,
+                                     r_cb @ np.asarray(o.position, float) + p_cb, axis,
                                      o.radius, o.height, r_cb @ rotation_matrix(o.orientation),
                                      np.asarray(o.size, float)))
         return SimFrame(seed, tuple(joints), rgb.copy(), cloud, self.intrinsics, objects)

@@ -1,6 +1,8 @@
-"""train_cylinder_classifier: train the pre-attention patch CNN (thesis section 4.3.2) on simulated tabletops.
+"""train_cylinder_classifier: train the pre-attention patch CNN (thesis section 4.3.2) on
+simulated tabletops.
 
-    ros2 run cylinder_detector_node train_cylinder_classifier [--scenes 150] [--poses 3] [--epochs 15]
+    ros2 run cylinder_detector_node train_cylinder_classifier [--scenes 150] [--poses 3]
+        [--epochs 15]
     python -m cylinder_detector_node.train_classifier --out my_model.pt
 
 Data, the thesis's semi-automatic way: vizzy_sim_bridge's tabletop(seed) scenes (cylinders: cans,
@@ -29,7 +31,8 @@ for _v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
 import numpy as np  # noqa: E402
 
 HELD_OUT_SEED = 10000
-DEFAULT_CACHE = Path(os.environ.get('XDG_CACHE_HOME', Path.home() / '.cache')) / 'vizzy' / 'cylinder_patches.npz'
+DEFAULT_CACHE = (Path(os.environ.get('XDG_CACHE_HOME', Path.home() / '.cache')) / 'vizzy'
+                 / 'cylinder_patches.npz')
 
 
 def render_dataset(seeds: list[int], poses: int, desc: str) -> dict[str, np.ndarray]:
@@ -39,7 +42,8 @@ def render_dataset(seeds: list[int], poses: int, desc: str) -> dict[str, np.ndar
     from .patch_data import frame_patches
     from .sim_frames import SimRenderer, random_joints
     r = SimRenderer()
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ('patches', 'labels', 'purity', 'fit_quality', 'seed')}
+    parts: dict[str, list[np.ndarray]] = {
+        k: [] for k in ('patches', 'labels', 'purity', 'fit_quality', 'seed')}
     try:
         for s in tqdm(seeds, desc=desc, unit='scene'):
             rng = np.random.default_rng([1, s])
@@ -62,12 +66,14 @@ def load_or_render(cache: Path, scenes: int, held_out: int, poses: int) -> dict[
     key = np.array([scenes, held_out, poses])
     if cache.is_file():
         data = dict(np.load(cache))
-        if np.array_equal(data.get('key'), key):
+        if 'key' in data and np.array_equal(data['key'], key):
             print(f'train_classifier: patches from {cache}', flush=True)
             return data
     train = render_dataset(list(range(scenes)), poses, 'rendering training scenes')
-    test = render_dataset(list(range(HELD_OUT_SEED, HELD_OUT_SEED + held_out)), poses, 'rendering held-out scenes')
-    data = {f'{split}_{k}': v for split, d in (('train', train), ('test', test)) for k, v in d.items()}
+    test = render_dataset(list(range(HELD_OUT_SEED, HELD_OUT_SEED + held_out)), poses,
+                          'rendering held-out scenes')
+    data = {f'{split}_{k}': v for split, d in (('train', train), ('test', test))
+            for k, v in d.items()}
     data['key'] = key
     cache.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(cache, **data)
@@ -84,16 +90,19 @@ def average_precision(scores: np.ndarray, labels: np.ndarray) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    # the first paragraph of the module docstring, as one line
+    ap = argparse.ArgumentParser(description=' '.join(__doc__.split('\n\n')[0].split()))
     ap.add_argument('--scenes', type=int, default=150, help='training scenes (seeds 0..N-1)')
-    ap.add_argument('--held-out', type=int, default=30, help=f'held-out scenes (seeds {HELD_OUT_SEED}..)')
+    ap.add_argument('--held-out', type=int, default=30,
+                    help=f'held-out scenes (seeds {HELD_OUT_SEED}..)')
     ap.add_argument('--poses', type=int, default=3, help='random head poses per scene')
     ap.add_argument('--epochs', type=int, default=15)
     ap.add_argument('--batch', type=int, default=64)
     ap.add_argument('--lr', type=float, default=3e-3)
     ap.add_argument('--threads', type=int, default=1, help='torch CPU threads')
     ap.add_argument('--cache', type=Path, default=DEFAULT_CACHE)
-    ap.add_argument('--out', type=Path, default=None, help='model file (default: the packaged model)')
+    ap.add_argument('--out', type=Path, default=None,
+                    help='model file (default: the packaged model)')
     args = ap.parse_args(argv)
 
     import torch
@@ -110,14 +119,15 @@ def main(argv: list[str] | None = None) -> int:
 
     def split(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ok = data[f'{name}_purity'] >= MIN_PURITY   # clusters merging objects are ambiguous
-        return data[f'{name}_patches'][ok], data[f'{name}_labels'][ok], data[f'{name}_fit_quality'][ok]
+        return (data[f'{name}_patches'][ok], data[f'{name}_labels'][ok],
+                data[f'{name}_fit_quality'][ok])
     xtr, ytr, _ = split('train')
     xte, yte, qte = split('test')
     if len(xtr) == 0 or len(xte) == 0:
         print('train_classifier: no patches rendered (no offscreen OpenGL?)', file=sys.stderr)
         return 1
-    print(f'train_classifier: {len(xtr)} training patches ({ytr.mean():.0%} cylinders), {len(xte)} held-out '
-          f'({yte.mean():.0%}); rendering {render_s:.0f} s', flush=True)
+    print(f'train_classifier: {len(xtr)} training patches ({ytr.mean():.0%} cylinders), '
+          f'{len(xte)} held-out ({yte.mean():.0%}); rendering {render_s:.0f} s', flush=True)
     mean = (xtr.reshape(-1, 3) / 255.0).mean(axis=0).astype(np.float32)
     std = (xtr.reshape(-1, 3) / 255.0).std(axis=0).astype(np.float32)
     clf = PatchClassifier(PatchNet(), mean, std)
@@ -141,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
     for epoch in range(args.epochs):
         perm = torch.randperm(len(x_all), generator=gen)
         total = 0.0
-        bar = tqdm(range(0, len(perm), args.batch), desc=f'epoch {epoch + 1}/{args.epochs}', unit='batch', leave=False)
+        bar = tqdm(range(0, len(perm), args.batch), desc=f'epoch {epoch + 1}/{args.epochs}',
+                   unit='batch', leave=False)
         for i in bar:
             idx = perm[i:i + args.batch]
             xb = clf.to_tensor(x_all[idx.numpy()])
@@ -155,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
             sched.step()
             total += float(loss.detach()) * len(idx)
         acc, _ = held_out()
-        print(f'epoch {epoch + 1}: training loss {total / len(x_all):.4f}, held-out accuracy {acc:.3f}', flush=True)
+        print(f'epoch {epoch + 1}: training loss {total / len(x_all):.4f}, '
+              f'held-out accuracy {acc:.3f}', flush=True)
     acc, p = held_out()
     ap_cnn = average_precision(p, yte)
     ap_fit = average_precision(qte, yte)
@@ -164,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     clf.save(out, {
         'trained': datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds'),
-        'train_scenes': args.scenes, 'held_out_scenes': args.held_out, 'held_out_first_seed': HELD_OUT_SEED,
+        'train_scenes': args.scenes, 'held_out_scenes': args.held_out,
+        'held_out_first_seed': HELD_OUT_SEED,
         'poses_per_scene': args.poses, 'epochs': args.epochs, 'train_patches': int(len(xtr)),
         'held_out_patches': int(len(xte)), 'held_out_accuracy': round(acc, 4),
         'held_out_average_precision': round(ap_cnn, 4),
@@ -172,8 +185,8 @@ def main(argv: list[str] | None = None) -> int:
         'fit_quality_best_accuracy': round(acc_fit, 4),
         'parameters': int(sum(p.numel() for p in clf.net.parameters())),
     })
-    print(f'train_classifier: held-out accuracy {acc:.3f} (Eq. 4.4 fit quality at its best threshold: '
-          f'{acc_fit:.3f}); average precision {ap_cnn:.3f} vs {ap_fit:.3f}; saved {out} '
+    print(f'train_classifier: held-out accuracy {acc:.3f} (Eq. 4.4 fit quality at its best '
+          f'threshold: {acc_fit:.3f}); average precision {ap_cnn:.3f} vs {ap_fit:.3f}; saved {out} '
           f'({out.stat().st_size / 1024:.0f} KiB) in {time.monotonic() - t0:.0f} s', flush=True)
     return 0
 

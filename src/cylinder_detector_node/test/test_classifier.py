@@ -1,4 +1,5 @@
-"""The pre-attention classifier (thesis section 4.3.2): patches, the stored model, the pipeline with it.
+"""The pre-attention classifier (thesis section 4.3.2): patches, the stored model, the pipeline
+with it.
 
 Held-out frames are rendered by the simulator (seeds far from the training seeds 0..149 and the
 held-out 10000.. used in training reports); skipped without offscreen OpenGL.
@@ -10,7 +11,13 @@ import numpy as np
 import pytest
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
-from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PATCH_SIZE, PatchClassifier, extract_patch, square_box
+from cylinder_detector_node.core.classifier import (
+    DEFAULT_MODEL,
+    PATCH_SIZE,
+    PatchClassifier,
+    extract_patch,
+    square_box,
+)
 from cylinder_detector_node.core.fitting import FitParams
 from cylinder_detector_node.core.pipeline import detect_cylinders, image_problem
 from cylinder_detector_node.train_classifier import average_precision
@@ -38,7 +45,8 @@ def classifier() -> PatchClassifier:
 def test_patches_are_square_zero_padded_crops() -> None:
     assert square_box((10, 20, 30, 60), margin=0.0) == (0, 20, 40, 60)
     img = np.full((100, 200, 3), 200, np.uint8)
-    p = extract_patch(img, (0, 0, 20, 40), size=PATCH_SIZE, margin=0.0)   # half of it left of the image
+    # half of it left of the image
+    p = extract_patch(img, (0, 0, 20, 40), size=PATCH_SIZE, margin=0.0)
     assert p.shape == (PATCH_SIZE, PATCH_SIZE, 3) and p.dtype == np.uint8
     assert p[:, :PATCH_SIZE // 4 - 1].max() == 0 and p[:, PATCH_SIZE // 4 + 1:].min() == 200
 
@@ -69,7 +77,8 @@ def test_classifier_beats_fit_quality_on_held_out_patches(frames, classifier) ->
     ap_cnn, ap_fit = average_precision(probs, labels), average_precision(quality, labels)
     assert ap_cnn > ap_fit, (ap_cnn, ap_fit)
     assert ((probs >= 0.5) == labels).mean() >= 0.8
-    # the baseline at its own threshold (0.5) lets most non-cylinders through: why the thesis adds the CNN
+    # the baseline at its own threshold (0.5) lets most non-cylinders through: why the thesis adds
+    # the CNN
     assert (quality[labels == 0] >= 0.5).mean() > (probs[labels == 0] >= 0.5).mean()
 
 
@@ -82,10 +91,11 @@ def test_pipeline_with_classifier_skips_non_cylinders(frames, classifier) -> Non
         without = detect_cylinders(f.cloud, SEGMENT, fit)
         assert with_c.n_clusters == without.n_clusters
         assert len(with_c.cluster_probabilities) == with_c.n_clusters
-        assert with_c.rejected_by_classifier + len(with_c.cylinders) + with_c.rejected <= with_c.n_clusters
+        assert (with_c.rejected_by_classifier + len(with_c.cylinders) + with_c.rejected
+                <= with_c.n_clusters)
         assert len(with_c.cylinders) <= len(without.cylinders)
         rng = np.random.default_rng(0)
-        for cl, p in zip(with_c.all_clusters, with_c.cluster_probabilities):
+        for cl, p in zip(with_c.all_clusters, with_c.cluster_probabilities, strict=True):
             lab, purity, _ = label_cluster(f, cl.points, rng)
             if lab == 0 and purity > 0.9 and p < 0.5:
                 rejected_non_cylinders += 1
@@ -101,7 +111,8 @@ def test_image_problems_are_named(frames, classifier) -> None:
     assert 'not organized' in image_problem(f.image, f.cloud.reshape(-1, 3).shape)
     assert 'not an 8-bit colour image' in image_problem(f.image[..., 0], f.cloud.shape)
     from cylinder_detector_node.patch_data import SEGMENT
-    det = detect_cylinders(f.cloud, SEGMENT, FitParams(gmm=TABLE_4_1['mild']), image=small, classifier=classifier)
+    det = detect_cylinders(f.cloud, SEGMENT, FitParams(gmm=TABLE_4_1['mild']), image=small,
+                           classifier=classifier)
     assert det.n_clusters > 0
     assert any('classifier skipped' in m and 'does not match' in m for m in det.messages)
     assert det.rejected_by_classifier == 0 and all(p is None for p in det.cluster_probabilities)

@@ -5,8 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cylinder_detector_node.core.accumulator import (TABLE_4_1, OrientationGMM, sample_gmm_directions,
-                                                     uniform_directions, vote_curvature, vote_normals)
+from cylinder_detector_node.core.accumulator import (
+    TABLE_4_1,
+    OrientationGMM,
+    sample_gmm_directions,
+    uniform_directions,
+    vote_curvature,
+    vote_normals,
+)
 
 
 def test_directions_are_unit() -> None:
@@ -21,7 +27,8 @@ def test_biased_accumulators_sample_where_the_gmm_says() -> None:
     z = {name: sample_gmm_directions(g, 20000, rng)[:, 2] for name, g in TABLE_4_1.items()}
     assert abs(z['unbiased'].mean()) < 0.02                    # symmetric
     assert abs(np.mean(np.abs(z['unbiased'])) - 0.5) < 0.02    # uniform on the sphere: E|z| = 1/2
-    within45 = {k: np.mean(v > np.cos(np.radians(45))) for k, v in z.items()}   # a 45-degree cap: 14.6% of the sphere
+    # a 45-degree cap: 14.6% of the sphere
+    within45 = {k: np.mean(v > np.cos(np.radians(45))) for k, v in z.items()}
     assert abs(within45['unbiased'] - (1 - np.cos(np.radians(45))) / 2) < 0.01
     assert 0.45 < within45['mild'] < 0.7
     assert within45['strong'] > 0.98
@@ -40,7 +47,8 @@ def test_user_mixture_components() -> None:
 
 
 def test_votes_peak_at_the_axis() -> None:
-    """Normals and c_max of an upright cylinder's side are horizontal: both votes peak at z (Eq. 4.3)."""
+    """Normals and c_max of an upright cylinder's side are horizontal: both votes peak at z
+    (Eq. 4.3)."""
     th = np.linspace(0, 2 * np.pi, 100, endpoint=False)
     n = np.column_stack([np.cos(th), np.sin(th), np.zeros_like(th)])
     c = np.column_stack([-np.sin(th), np.cos(th), np.zeros_like(th)])

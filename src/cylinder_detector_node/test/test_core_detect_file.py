@@ -45,7 +45,8 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 
 
 def test_json_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    scene = make_tabletop(np.random.default_rng(0), n_cylinders=1, n_distractors=0, width=320, height=240)
+    scene = make_tabletop(np.random.default_rng(0), n_cylinders=1, n_distractors=0, width=320,
+                          height=240)
     f = tmp_path / 'one.ply'
     write_ply(f, scene.cloud)
     code, out, err = run(capsys, f, '--plot', tmp_path / 'one.png')
@@ -53,7 +54,8 @@ def test_json_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     res = json.loads(out)
     assert len(res['cylinders']) == 1
     c = res['cylinders'][0]
-    assert set(c) >= {'centre', 'axis', 'radius', 'height', 'confidence', 'axis_to_table_normal_deg'}
+    assert set(c) >= {'centre', 'axis', 'radius', 'height', 'confidence',
+                      'axis_to_table_normal_deg'}
     base, r, h = scene.cylinders[0]
     assert abs(c['radius'] - r) < 0.3 * r
     assert np.linalg.norm(np.array(c['centre']) - base) < h
@@ -83,7 +85,7 @@ def test_room_with_default_options_finds_the_tabletop_cylinders(
     assert np.array(res['table']['normal']) @ scene.up > np.cos(np.radians(2.0))
     assert len(res['cylinders']) >= 2
     assert max(c['range_m'] for c in res['cylinders']) < 1.6       # the clutter is 2.1 m away
-    for base, r, h in scene.cylinders:
+    for base, _r, h in scene.cylinders:
         centre = base + 0.5 * h * scene.up
         c = min(res['cylinders'], key=lambda c: np.linalg.norm(np.array(c['centre']) - centre))
         assert np.linalg.norm(np.array(c['centre']) - centre) < 0.06
@@ -97,7 +99,8 @@ def test_room_with_default_options_finds_the_tabletop_cylinders(
     assert json.loads(out)['table']['height_m'] == pytest.approx(scene.table_height, abs=0.01)
 
 
-def test_bad_files_end_with_one_line_and_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_bad_files_end_with_one_line_and_exit_2(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
     cloud = np.random.default_rng(3).uniform(-1, 1, (12, 10, 3)).astype(np.float32)
     good_bin, good_ascii = tmp_path / 'good.pcd', tmp_path / 'good_ascii.pcd'
     write_pcd(good_bin, cloud)
@@ -167,18 +170,24 @@ def test_bad_files_end_with_one_line_and_exit_2(tmp_path: Path, capsys: pytest.C
         assert problem in err and str(f) in err, err
 
 
-def test_bad_options_end_with_one_line_and_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_bad_options_end_with_one_line_and_exit_2(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     f = tmp_path / 'c.ply'
     write_ply(f, np.random.default_rng(0).uniform(-1, 1, (100, 3)))
-    for argv, problem in ((['--up', '0,0,0'], 'non-zero vector'), (['--up', '1,2'], 'non-zero vector'),
-                          (['--up-tolerance', '95'], 'below 90'), (['--plot', tmp_path / 'no' / 'p.png'], 'cannot write'), (['--voxel', '-1'], 'positive'),
-                          (['--radius-min', '0.2'], 'radius'), (['--image', tmp_path / 'no.png'], 'not a readable image')):
+    for argv, problem in ((['--up', '0,0,0'], 'non-zero vector'),
+                          (['--up', '1,2'], 'non-zero vector'),
+                          (['--up-tolerance', '95'], 'below 90'),
+                          (['--plot', tmp_path / 'no' / 'p.png'], 'cannot write'),
+                          (['--voxel', '-1'], 'positive'),
+                          (['--radius-min', '0.2'], 'radius'),
+                          (['--image', tmp_path / 'no.png'], 'not a readable image')):
         code, out, err = run(capsys, f, *argv)
         assert code == 2 and out == '', argv
         assert len(err.strip().splitlines()) == 1 and problem in err, err
 
 
-def test_a_cloud_of_nans_is_read_and_has_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_cloud_of_nans_is_read_and_has_nothing(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
     nan = tmp_path / 'nan.ply'
     nan.write_text('ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n'
                    'property float z\nend_header\n' + 'nan nan nan\n' * 3)

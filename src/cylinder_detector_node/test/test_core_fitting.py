@@ -1,4 +1,5 @@
-"""Cylinder fitting (thesis section 4.3.3): synthetic cylinders recovered; caps break the baseline only."""
+"""Cylinder fitting (thesis section 4.3.3): synthetic cylinders recovered; caps break the
+baseline only."""
 
 from __future__ import annotations
 
@@ -8,7 +9,12 @@ import pytest
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.fitting import FitParams, fit_cylinder, make_directions
 from cylinder_detector_node.core.geometry import normals_and_curvature
-from cylinder_detector_node.core.synthetic import axis_angle_deg, axis_distance, make_cylinder, random_axis
+from cylinder_detector_node.core.synthetic import (
+    axis_angle_deg,
+    axis_distance,
+    make_cylinder,
+    random_axis,
+)
 
 
 @pytest.mark.parametrize('seed', range(8))
@@ -18,7 +24,8 @@ def test_random_pose_cylinders_are_recovered(seed: int) -> None:
     rng = np.random.default_rng(seed)
     r = rng.uniform(0.03, 0.1)
     h = r * rng.uniform(2.0, 6.0)
-    s = make_cylinder(rng, r, h, 900, 0.0, 0.01 * r, axis=random_axis(rng), centre=rng.uniform(-1, 1, 3))
+    s = make_cylinder(rng, r, h, 900, 0.0, 0.01 * r, axis=random_axis(rng),
+                      centre=rng.uniform(-1, 1, 3))
     c = fit_cylinder(s.points, FitParams(n_directions=2000))
     assert c is not None
     assert axis_angle_deg(np.array(c.axis), s.axis) < 6.0
@@ -59,9 +66,11 @@ def test_bad_clusters_give_none() -> None:
     p = FitParams()
     assert fit_cylinder(np.zeros((0, 3)), p) is None
     assert fit_cylinder(np.full((500, 3), np.nan), p) is None
-    assert fit_cylinder(np.random.default_rng(0).normal(size=(10, 3)), p) is None   # fewer than min_points
+    # fewer than min_points
+    assert fit_cylinder(np.random.default_rng(0).normal(size=(10, 3)), p) is None
     plane = np.column_stack([np.random.default_rng(1).uniform(-0.1, 0.1, (800, 2)), np.zeros(800)])
-    assert fit_cylinder(plane, FitParams(min_confidence=0.5)) is None                # a flat patch is no cylinder
+    # a flat patch is no cylinder
+    assert fit_cylinder(plane, FitParams(min_confidence=0.5)) is None
 
 
 def test_parameters_are_checked() -> None:
@@ -82,10 +91,13 @@ def test_short_capped_cylinders_recovered_by_retrying_peaks() -> None:
     for i in range(12):
         rng = np.random.default_rng(500 + i)
         s = make_cylinder(rng, 0.3, rng.uniform(0.05, 0.5), 900, 1.5, centre=rng.uniform(-1, 1, 3))
-        err_with.append(axis_angle_deg(np.array(fit_cylinder(s.points, with_retry, d).axis), s.axis))
-        err_without.append(axis_angle_deg(np.array(fit_cylinder(s.points, without, d).axis), s.axis))
+        err_with.append(axis_angle_deg(np.array(fit_cylinder(s.points, with_retry, d).axis),
+                                       s.axis))
+        err_without.append(axis_angle_deg(np.array(fit_cylinder(s.points, without, d).axis),
+                                          s.axis))
     assert np.mean(np.array(err_without) > 60.0) >= 0.5     # flat axes (about 90 degrees off)
-    assert max(err_with) < 60.0                               # no flat axis left; disks (h < 0.2 m) stay off by 30-45
+    # no flat axis left; disks (h < 0.2 m) stay off by 30-45
+    assert max(err_with) < 60.0
     assert np.median(err_with) < 5.0
 
 
@@ -132,7 +144,8 @@ def test_curvature_is_the_same_in_any_tangent_basis_and_defined_on_planes() -> N
     curved = k > 1e-3
     assert curved.sum() > 300
     assert np.allclose(np.abs(np.sum(c * c2, axis=1))[curved], 1.0, atol=1e-9)
-    flat_n = np.tile([0.0, 0.0, 1.0], (50, 1)) * rng.choice([-1.0, 1.0], (50, 1))   # signs as PCA leaves them
+    # signs as PCA leaves them
+    flat_n = np.tile([0.0, 0.0, 1.0], (50, 1)) * rng.choice([-1.0, 1.0], (50, 1))
     flat_idx = np.array([np.roll(np.arange(50), -i)[:15] for i in range(50)])
     c3, k3 = principal_curvature(flat_n, flat_idx)
     assert np.all(k3 == 0.0)

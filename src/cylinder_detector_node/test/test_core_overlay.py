@@ -4,8 +4,13 @@ projected where the cylinder is."""
 import numpy as np
 
 from cylinder_detector_node.core.fitting import Cylinder
-from cylinder_detector_node.core.overlay import (CYLINDER_COLOUR, cylinder_outline, draw_cylinders,
-                                                  intrinsics_from_organized, project)
+from cylinder_detector_node.core.overlay import (
+    CYLINDER_COLOUR,
+    cylinder_outline,
+    draw_cylinders,
+    intrinsics_from_organized,
+    project,
+)
 
 K = np.array([[525.0, 0.0, 319.5], [0.0, 520.0, 239.5], [0.0, 0.0, 1.0]])
 
@@ -34,7 +39,8 @@ def test_a_cylinder_is_drawn_where_it_projects() -> None:
     assert np.allclose(np.linalg.norm(bottom - np.array([0.05, 0.08, 1.0]), axis=1), 0.04)
     out = draw_cylinders(np.zeros((480, 640, 3), np.uint8), K, [c])
     uv = project(top, K)
-    u, v = np.round(uv[np.argmax(uv[:, 0])]).astype(int)        # the rightmost point of the top ring
+    # the rightmost point of the top ring
+    u, v = np.round(uv[np.argmax(uv[:, 0])]).astype(int)
     patch = out[v - 2:v + 3, u - 2:u + 3]
     assert (patch == np.array(CYLINDER_COLOUR, np.uint8)).all(axis=-1).any()
     far = out[400:, 50:150]                                      # nowhere near the cylinder

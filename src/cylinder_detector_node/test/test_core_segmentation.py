@@ -31,7 +31,8 @@ def test_tabletop_objects_are_segmented_and_cylinders_found() -> None:
     assert scene.cloud.shape == (480, 640, 3)
     seg = segment_tabletop(scene.cloud, intrinsics=scene.intrinsics)
     assert seg.plane is not None
-    assert 9 <= len(seg.clusters) <= 11          # 11 objects; a few may touch or hide behind another
+    # 11 objects; a few may touch or hide behind another
+    assert 9 <= len(seg.clusters) <= 11
     for cl in seg.clusters:
         u0, v0, u1, v1 = cl.patch
         assert 0 <= u0 < u1 <= 640 and 0 <= v0 < v1 <= 480
@@ -73,7 +74,8 @@ def test_table_in_a_room_wins_over_the_back_wall_and_the_floor() -> None:
         assert np.linalg.norm(np.array(c.centre) - centre) < 0.06
         assert abs(c.radius - r) < 0.3 * r           # 320 x 240: a few hundred points each
         assert np.degrees(np.arccos(min(1.0, np.array(c.axis) @ scene.up))) < 6.0
-    assert set(det.stage_cpu_ms) == {'downsample', 'plane', 'clusters', 'classification', 'fitting', 'total'}
+    assert set(det.stage_cpu_ms) == {'downsample', 'plane', 'clusters', 'classification',
+                                     'fitting', 'total'}
     assert det.stage_cpu_ms['total'] >= det.stage_cpu_ms['fitting'] > 0.0
 
 
@@ -95,7 +97,8 @@ def test_the_highest_plane_with_objects_wins_over_a_larger_floor() -> None:
 def test_books_on_the_table_are_an_object_not_the_table() -> None:
     rng = np.random.default_rng(5)
     table = horizontal(rng, 30000, DOWN, (-0.6, 0.6), (0.6, 1.6))
-    books = horizontal(rng, 4000, DOWN - 0.05, (-0.15, 0.15), (1.0, 1.25))   # 5 cm high, 0.3 x 0.25 m
+    # 5 cm high, 0.3 x 0.25 m
+    books = horizontal(rng, 4000, DOWN - 0.05, (-0.15, 0.15), (1.0, 1.25))
     side = np.column_stack([rng.uniform(-0.15, 0.15, 600), rng.uniform(DOWN - 0.05, DOWN, 600),
                             np.full(600, 1.0)])                               # its front side
     cup_on_books = upright(rng, 1500, (0.0, DOWN - 0.05, 1.1), 0.04, 0.1)
@@ -104,13 +107,16 @@ def test_books_on_the_table_are_an_object_not_the_table() -> None:
     assert seg.plane[3] == pytest.approx(DOWN, abs=0.005)
     assert any('lies on' in p.get('verdict', '') for p in seg.planes)
     centres = sorted(tuple(np.round(c.points.mean(axis=0)[[0, 2]], 1)) for c in seg.clusters)
-    assert len(centres) == 2 and centres[1][0] == pytest.approx(0.4, abs=0.05)   # books with cup, mug
+    # books with cup, mug
+    assert len(centres) == 2 and centres[1][0] == pytest.approx(0.4, abs=0.05)
 
 
 def test_walls_and_ceilings_are_no_table() -> None:
     rng = np.random.default_rng(6)
-    wall = np.column_stack([rng.uniform(-1, 1, (30000, 2)), np.full(30000, 1.5)])  # facing the camera
-    box = rng.uniform([-0.1, -0.1, 1.3], [0.1, 0.1, 1.45], (2000, 3))            # something before it
+    # facing the camera
+    wall = np.column_stack([rng.uniform(-1, 1, (30000, 2)), np.full(30000, 1.5)])
+    # something before it
+    box = rng.uniform([-0.1, -0.1, 1.3], [0.1, 0.1, 1.45], (2000, 3))
     seg = segment_tabletop(np.vstack([wall, box]))
     assert seg.plane is None and seg.clusters == []
     assert 'no table plane' in seg.messages[0] and 'up' in seg.messages[0]
@@ -150,7 +156,8 @@ def test_bad_clouds_give_messages_and_no_clusters() -> None:
 def test_small_clusters_are_dropped_with_a_message() -> None:
     rng = np.random.default_rng(2)
     table = horizontal(rng, 20000, DOWN, (-0.5, 0.5), (0.5, 1.5))
-    crumb = rng.normal([0.0, DOWN - 0.05, 1.0], 0.002, (40, 3))      # 5 cm above the table, a few voxels
+    # 5 cm above the table, a few voxels
+    crumb = rng.normal([0.0, DOWN - 0.05, 1.0], 0.002, (40, 3))
     seg = segment_tabletop(np.vstack([table, crumb]))
     assert seg.plane is not None and seg.clusters == []
     assert any('below' in m or 'no objects' in m for m in seg.messages)
@@ -158,5 +165,7 @@ def test_small_clusters_are_dropped_with_a_message() -> None:
 
 def test_project_box() -> None:
     k = (500.0, 500.0, 320.0, 240.0)
-    assert project_box(np.array([-0.1, -0.1, 1.0]), np.array([0.1, 0.1, 1.2]), k, (640, 480)) == (270, 190, 370, 290)
-    assert project_box(np.array([-0.1, -0.1, -2.0]), np.array([0.1, 0.1, -1.0]), k, (640, 480)) is None
+    assert project_box(np.array([-0.1, -0.1, 1.0]), np.array([0.1, 0.1, 1.2]), k,
+                       (640, 480)) == (270, 190, 370, 290)
+    assert project_box(np.array([-0.1, -0.1, -2.0]), np.array([0.1, 0.1, -1.0]), k,
+                       (640, 480)) is None

@@ -7,8 +7,12 @@ import pytest
 
 from cylinder_detector_node import node
 from vizzy_runtime.convert import array_to_pointcloud2
-from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
-                                   parameter_refusals)
+from vizzy_runtime.testing import (
+    check_node_parameters,
+    check_parameter_table,
+    node_under_test,
+    parameter_refusals,
+)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'cylinder_detector.yaml'
 
@@ -113,7 +117,8 @@ def test_up_comes_from_tf_else_the_clouds_minus_y() -> None:
     seg, _ = node.pipeline_params({**values, 'up_tolerance_deg': 20.0})
     assert seg.up_tolerance_deg == 20.0
     # an optical frame (x right, y down, z forward) pitched 30 degrees down, 1.2 m above base_link
-    level = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])   # columns: x, y, z of cam
+    # columns: x, y, z of cam
+    level = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
     t = np.radians(30.0)
     pitch = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(t), -np.sin(t)], [0.0, np.sin(t), np.cos(t)]])
     pose = np.eye(4)
@@ -123,7 +128,8 @@ def test_up_comes_from_tf_else_the_clouds_minus_y() -> None:
         assert ros_node.cloud_up('cam') == CAMERA_UP          # no tf yet: the optical frame's -y
         ros_node.tf_buffer.set_transform('base_link', 'cam', pose)
         up = np.array(ros_node.cloud_up('cam'))
-        assert np.allclose(up, [0.0, -np.cos(t), -np.sin(t)], atol=1e-9)   # camera-down plus forward
+        # camera-down plus forward
+        assert np.allclose(up, [0.0, -np.cos(t), -np.sin(t)], atol=1e-9)
         assert np.allclose(ros_node.cloud_up('/cam'), up)
         assert ros_node.cloud_up('elsewhere') == CAMERA_UP    # not in the tree
         ros_node._p['up_frame'] = ''                            # no up frame: -y

@@ -1,4 +1,5 @@
-"""The cylinder detector live on the bundled runtime: organized clouds in, cylinders and markers out.
+"""The cylinder detector live on the bundled runtime: organized clouds in, cylinders and markers
+out.
 
 A test node publishes synthetic organized clouds (core.scene: a ray-cast tabletop seen from a
 camera optical frame) and listens to /cylinders and /cylinders/markers, all in one process and one
@@ -14,12 +15,18 @@ import numpy as np
 import pytest
 
 from cylinder_detector_node import node as cyl_node
-from cylinder_detector_node.core.scene import make_tabletop
 from cylinder_detector_node.core.overlay import CYLINDER_COLOUR
+from cylinder_detector_node.core.scene import make_tabletop
 from vizzy_runtime.convert import array_to_pointcloud2, image_to_numpy, numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
-from vizzy_runtime.ros import (Context, Node, Parameter, message, qos_profile_sensor_data,
-                               qos_profile_system_default)
+from vizzy_runtime.ros import (
+    Context,
+    Node,
+    Parameter,
+    message,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
 from vizzy_runtime.testing import publish_until, reported_status, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -103,7 +110,8 @@ def test_two_upright_cylinders_on_a_table(graph) -> None:
     stamped = lambda a: a.header.stamp.sec == 42   # noqa: E731
     marked = lambda m: m.markers and m.markers[0].header.stamp.sec == 42   # noqa: E731
     assert _send_until(camera, executor, msg,
-                       lambda: any(map(stamped, camera.arrays)) and any(map(marked, camera.markers)))
+                       lambda: (any(map(stamped, camera.arrays))
+                                and any(map(marked, camera.markers))))
     out = next(a for a in camera.arrays if stamped(a))
     assert out.header.frame_id == FRAME
     assert len(out.cylinders) == 2, [(c.center, c.radius) for c in out.cylinders]
@@ -127,7 +135,8 @@ def test_two_upright_cylinders_on_a_table(graph) -> None:
     assert markers[0].action == Marker.DELETEALL
     bodies = [m for m in markers if m.type == Marker.CYLINDER]
     assert len(bodies) == 2 and all(m.header.frame_id == FRAME for m in bodies)
-    for m, c in zip(sorted(bodies, key=lambda m: m.id), sorted(out.cylinders, key=lambda c: c.id)):
+    for m, c in zip(sorted(bodies, key=lambda m: m.id), sorted(out.cylinders, key=lambda c: c.id),
+                    strict=True):
         q = m.pose.orientation
         z_axis = _rotate_z(q.x, q.y, q.z, q.w)
         assert np.allclose(z_axis, _xyz(c.axis), atol=1e-6)
@@ -169,7 +178,8 @@ def test_all_nan_cloud_gives_an_empty_array_and_a_log_line(graph, capfd) -> None
                        lambda: any(a.header.stamp.sec == 8 for a in camera.arrays))
     assert all(not a.cylinders for a in camera.arrays if a.header.stamp.sec == 8)
     assert detector.set_parameters([Parameter('method', value='rabbani'),
-                                    Parameter('classifier_model', value='/nonexistent/model.pt')])[0].successful
+                                    Parameter('classifier_model',
+                                              value='/nonexistent/model.pt')])[0].successful
     assert detector._params[1].method == 'rabbani'
     assert detector.classifier is None
     assert 'classifier unavailable' in capfd.readouterr().err
@@ -226,7 +236,8 @@ def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered,
         nearest = rendered.objects[int(np.argmin(rendered.surface_distances(centre)[0]))]
         assert nearest.is_cylinder, nearest.name
         assert 0.5 <= c.confidence <= 1.0 and 0.0 < c.fit_quality <= 1.0
-    # without the classifier the same frame gives non-cylinders too (Eq. 4.4 alone lets them through)
+    # without the classifier the same frame gives non-cylinders too (Eq. 4.4 alone lets them
+    # through)
     assert detector.set_parameters([Parameter('use_classifier', value=False)])[0].successful
     assert _send_until(camera, executor, _cloud_message(rendered.cloud, 51),
                        lambda: any(a.header.stamp.sec == 51 for a in camera.arrays), image)
@@ -241,7 +252,8 @@ def test_classifier_rejects_non_cylinders_and_checks_image_size(graph, rendered,
     assert _send_until(camera, executor, _cloud_message(rendered.cloud, 52),
                        lambda: any(a.header.stamp.sec == 52 for a in camera.arrays), small)
     assert not detector.last_classified
-    assert wait_until(lambda: 'image 320x240 does not match the 640x480 cloud' in capfd.readouterr().err,
+    assert wait_until(lambda: ('image 320x240 does not match the 640x480 cloud'
+                               in capfd.readouterr().err),
                       TIMEOUT, spin=executor)
     assert any(a.header.stamp.sec == 52 and a.cylinders for a in camera.arrays)
 

@@ -76,14 +76,39 @@ from foveation_node.core.foveation import DEFAULT_F0, DEFAULT_LEVELS, PYRAMID_SI
 from foveation_node.core.image_checks import check_fixation
 from foveation_node.core.overlay import Box, draw_overlay
 from foveation_node.core.recognition import (
-    DEFAULT_THRESHOLD, DEFAULT_TOP_K, Classifier, Detection, ModelError, TwoPassResult,
-    back_project, saccade_target, two_pass)
-from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
-    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING, ConversionError, image_refusal, image_to_numpy, numpy_to_image)
+    DEFAULT_THRESHOLD,
+    DEFAULT_TOP_K,
+    Classifier,
+    Detection,
+    ModelError,
+    TwoPassResult,
+    back_project,
+    saccade_target,
+    two_pass,
+)
+from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reasons are this
+    # node's counter keys too)
+    EMPTY_IMAGE,
+    IMAGE_REASONS,
+    SHORT_DATA,
+    SHORT_STEP,
+    TOO_LARGE,
+    UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING,
+    ConversionError,
+    image_refusal,
+    image_to_numpy,
+    numpy_to_image,
+)
 from vizzy_runtime.input_health import InputHealth
-from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
-                                      main_for, publish_from_thread)
+from vizzy_runtime.node_tools import (
+    LatestWorker,
+    Param,
+    declare_parameters,
+    guarded,
+    main_for,
+    publish_from_thread,
+)
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
 
 Image = message('sensor_msgs/msg/Image')
@@ -342,12 +367,14 @@ class FoveationNode(Node):
             return
         self._classifier = classifier
         w, h = classifier.preprocessing.input_size
+        saccades = (', saccades on ' + self._gaze_pub.topic_name if self._p['saccades_enabled']
+                    else '')
         self.get_logger().info(
             f'recognising {classifier.num_classes} classes ({", ".join(classifier.labels[:8])}'
             f'{", ..." if classifier.num_classes > 8 else ""}) with {model} at {w}x{h}, top-'
             f'{self._p["top_k"]}, th {self._p["saliency_threshold"]:g}, at most '
             f'{self._p["recognition_rate_hz"]:g} Hz; detections on {self._det_pub.topic_name}'
-            f'{", saccades on " + self._gaze_pub.topic_name if self._p["saccades_enabled"] else ""}')
+            f'{saccades}')
 
     def _on_gaze_state(self, msg: Any) -> None:
         in_saccade = bool(msg.in_saccade)

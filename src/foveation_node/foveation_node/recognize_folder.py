@@ -113,7 +113,13 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from .core.folder_recognition import (
-        FolderError, Foveators, evaluate_image, fit, load_folder, read_rgb)
+        FolderError,
+        Foveators,
+        evaluate_image,
+        fit,
+        load_folder,
+        read_rgb,
+    )
     from .core.recognition import Classifier, ModelError
 
     torch.set_num_threads(args.threads)

@@ -9,7 +9,8 @@
 experiment, TABLETOP_POSES random head poses each): every unoccluded object in view gives one
 image foveated (K = 5, f_0 uniform in 60-160 px) at its centre plus a small random offset,
 labelled with the object under that point (the object the node's pass 2 has its fovea on);
-classes are balanced by sampling, and the single-object and tabletop views are drawn half each. --init fine-tunes a model (same architecture; its
+classes are balanced by sampling, and the single-object and tabletop views are drawn half each.
+--init fine-tunes a model (same architecture; its
 preprocessing is kept) instead of starting from scratch.
 
 Renders single-object views (core.object_views: the classes of our scenes, random pose,
@@ -37,9 +38,13 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+
+if TYPE_CHECKING:                   # torch is imported where it is used (slow to import)
+    import torch
 
 MODELS_DIR = Path(__file__).resolve().parent / 'models'
 MODEL_NAME = 'foveation_cnn'
@@ -52,7 +57,7 @@ F0_RANGE = (60.0, 160.0)
 
 
 def build_network(num_classes: int,
-                  widths: tuple[int, int, int, int] = (16, 32, 64, 128)) -> 'torch.nn.Module':
+                  widths: tuple[int, int, int, int] = (16, 32, 64, 128)) -> torch.nn.Module:
     """A small all-convolutional CNN for 227x227 input (about 100 k parameters, 19 M multiply-adds).
 
     A 7x7 stride-4 first layer as AlexNet/CaffeNet (the thesis's smallest network), three 3x3
@@ -117,7 +122,9 @@ def render_tabletop_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray,
                         foveators[f0] = Foveator(w, h, 5, float(f0))
                     img = foveators[f0].foveate(view.rgb, (u, v))
                     images.append(cv2.resize(img, INPUT_SIZE, interpolation=cv2.INTER_AREA))
-                    labels.append(object_at(view.objects, u, v).label)
+                    under = object_at(view.objects, u, v)
+                    assert under is not None        # o is visible: never None
+                    labels.append(under.label)
     return np.stack(images), np.asarray(labels, np.int64)
 
 
@@ -167,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     ty_train = ty_val = np.zeros(0, np.int64)
     if args.tabletop_cache is not None and args.tabletop_cache.exists():
         data = np.load(args.tabletop_cache)
-        t_train, ty_train, t_val, ty_val = (data[k] for k in ('x_train', 'y_train', 'x_val', 'y_val'))
+        t_train, ty_train, t_val, ty_val = (data[k]
+                                            for k in ('x_train', 'y_train', 'x_val', 'y_val'))
         print(f'loaded {len(t_train)} + {len(t_val)} tabletop views from {args.tabletop_cache}')
     elif args.tabletop > 0:
         t_train, ty_train = render_tabletop_set(args.tabletop, TABLETOP_SEED0, 'tabletop train')
@@ -278,7 +286,7 @@ def main(argv: list[str] | None = None) -> int:
     model_path = args.out / f'{MODEL_NAME}.pt'
     scripted.save(str(model_path))
     (args.out / f'{MODEL_NAME}.labels').write_text('\n'.join(CLASSES) + '\n', encoding='utf-8')
-    report = {
+    report: dict[str, Any] = {
         'input_size': list(INPUT_SIZE), 'mean': [round(float(v), 5) for v in mean],
         'std': [round(float(v), 5) for v in std],
         'training': {

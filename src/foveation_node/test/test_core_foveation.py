@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from foveation_node.core.foveation import (
-    PYRAMID_SIGMA_1, Foveator, foveate, foveate_reference, fovea_kernel, fovea_sigmas,
+    PYRAMID_SIGMA_1,
+    Foveator,
+    fovea_kernel,
+    fovea_sigmas,
+    foveate,
+    foveate_reference,
     gaussian_sigmas,
 )
 from foveation_node.core.synthetic import pink_noise, to_uint8

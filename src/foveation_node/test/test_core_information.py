@@ -7,7 +7,10 @@ import pytest
 from scipy import integrate
 
 from foveation_node.core.information import (
-    information_bits, kernel_mean_square, laplacian_energy_fractions, measured_information,
+    information_bits,
+    kernel_mean_square,
+    laplacian_energy_fractions,
+    measured_information,
     predicted_information,
 )
 from foveation_node.core.synthetic import pink_noise, white_noise
@@ -19,7 +22,7 @@ def test_eq_2_11_closed_form_matches_the_integral_of_eq_2_8() -> None:
     fractions, residual = laplacian_energy_fractions(1.0, 4)
     sigmas = [0.0, 1.0, 2.0, 4.0, 8.0]
     for k, expected in enumerate(fractions):
-        def band(wv: float, wu: float) -> float:
+        def band(wv: float, wu: float, k: int = k) -> float:
             g = [np.exp(-s ** 2 / 2 * (wu ** 2 + wv ** 2)) for s in (sigmas[k], sigmas[k + 1])]
             return (g[0] - g[1]) ** 2
         value, _ = integrate.dblquad(band, -np.pi, np.pi, -np.pi, np.pi, epsabs=1e-10)

@@ -14,8 +14,16 @@ import torch
 
 from foveation_node.core.foveation import Foveator
 from foveation_node.core.recognition import (
-    Classifier, ModelError, back_project, load_preprocessing, merge_second_pass, saccade_target,
-    saliency_box, two_pass, Detection)
+    Classifier,
+    Detection,
+    ModelError,
+    back_project,
+    load_preprocessing,
+    merge_second_pass,
+    saccade_target,
+    saliency_box,
+    two_pass,
+)
 
 W, H = 640, 480
 

@@ -14,8 +14,19 @@ import pytest
 
 from foveation_node import recognize_folder
 from foveation_node.core.folder_recognition import (
-    FolderError, Foveators, evaluate_image, fit, grid_fixations, iou, load_folder, localisation_hits, paste,
-    read_rgb, top_errors, true_rank)
+    FolderError,
+    Foveators,
+    evaluate_image,
+    fit,
+    grid_fixations,
+    iou,
+    load_folder,
+    localisation_hits,
+    paste,
+    read_rgb,
+    top_errors,
+    true_rank,
+)
 from foveation_node.core.recognition import Classifier
 
 LABELS = ['red', 'green', 'blue']

@@ -8,8 +8,13 @@ import pytest
 
 from foveation_node import node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
-                                   parameter_refusals, startup_problem)
+from vizzy_runtime.testing import (
+    check_node_parameters,
+    check_parameter_table,
+    node_under_test,
+    parameter_refusals,
+    startup_problem,
+)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'foveation.yaml'
 

@@ -15,7 +15,13 @@ from torch import nn
 
 from foveation_node import export_imagenet_classifier
 from foveation_node.core.imagenet_export import (
-    LITE_MEAN, LITE_STD, ExportError, export_lite, export_torchscript, read_class_list)
+    LITE_MEAN,
+    LITE_STD,
+    ExportError,
+    export_lite,
+    export_torchscript,
+    read_class_list,
+)
 from foveation_node.core.recognition import Classifier
 
 HAVE_LITE = all(importlib.util.find_spec(m) is not None for m in

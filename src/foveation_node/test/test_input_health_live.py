@@ -17,9 +17,14 @@ from foveation_node import node as fov_node
 from vizzy_runtime.convert import numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import (
-    Context, Node, Parameter, message, qos_profile_sensor_data, qos_profile_system_default)
-from vizzy_runtime.testing import (publish_until, refused_once, reported_status, spinning,
-                                   wait_until)
+    Context,
+    Node,
+    Parameter,
+    message,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
+from vizzy_runtime.testing import publish_until, refused_once, reported_status, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -109,7 +114,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         ('too small for levels', _small()),                  # 5 levels need 32 px a side
     ]
     for reason, msg in bad_images:
-        assert refused_once(foveation, executor, lambda: camera.image_pub.publish(msg),
+        assert refused_once(foveation, executor, lambda msg=msg: camera.image_pub.publish(msg),
                              (image_topic, reason)), reason
     # a fixation outside the image
     assert foveation.set_parameters([Parameter('fixation_u', value=1000.0)])[0].successful

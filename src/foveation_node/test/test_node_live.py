@@ -16,7 +16,13 @@ from foveation_node import node as fov_node
 from foveation_node.core.synthetic import white_noise
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
 from vizzy_runtime.ros import (
-    Context, Node, Parameter, message, qos_profile_sensor_data, qos_profile_system_default)
+    Context,
+    Node,
+    Parameter,
+    message,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)

@@ -47,9 +47,11 @@ import importlib
 import json
 import math
 import sys
+from collections.abc import Callable
+from collections.abc import Sequence as Seq
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, NoReturn, Sequence as Seq
+from typing import Any, Literal, NoReturn, cast
 
 import cv2
 import numpy as np
@@ -61,8 +63,15 @@ from .core.metrics import MotEvaluator, summarize
 from .core.motchallenge import MotFolderError, Sequence, find_sequences, load_sequence
 from .core.planner import PlannerConfig
 from .core.regions import AREA_MODES
-from .core.tracker import (DEPLOYED, NEW_TRACKS, PROTOCOLS, THESIS, FrameError, MotTracker,
-                           TrackerConfig)
+from .core.tracker import (
+    DEPLOYED,
+    NEW_TRACKS,
+    PROTOCOLS,
+    THESIS,
+    FrameError,
+    MotTracker,
+    TrackerConfig,
+)
 
 MODES = {'planner': 'planner', 'full': 'full_frame'}
 
@@ -217,7 +226,9 @@ def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
     planner = PlannerConfig(k_max=args.k_max, s_max=args.s_max, area=args.area,
                             alpha_c=args.alpha_c, alpha_s=args.alpha_s, budget_ms=budget_ms,
                             max_iterations=max_iterations, seed=args.seed)
-    return TrackerConfig(mode=mode, new_tracks=args.new_tracks,
+    # mode comes from the command line; TrackerConfig refuses anything but these two
+    return TrackerConfig(mode=cast(Literal['planner', 'full'], mode),
+                         new_tracks=args.new_tracks,
                          full_frame_period=args.period, birth_share=args.birth_share,
                          birth_score=args.birth_score, keep_lost=args.keep_lost,
                          report_misses=(None if args.report_misses is None

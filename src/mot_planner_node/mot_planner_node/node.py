@@ -72,22 +72,42 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import replace
-from typing import Any, Callable
+from typing import Any, cast
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from mot_planner_node.core.detector import Detector, HogDetector
-from mot_planner_node.core.egomotion import (OrientationHistory, rotation_between,
-                                             rotation_homography)
+from mot_planner_node.core.egomotion import (
+    OrientationHistory,
+    rotation_between,
+    rotation_homography,
+)
 from mot_planner_node.core.ground_plane import ConsistencyGate, implied_size
 from mot_planner_node.core.planner import PlannerConfig
-from mot_planner_node.core.tracker import (DEPLOYED, FrameError, FrameResult, MotTracker,
-                                           deployed_config)
-from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
-    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING, ConversionError, image_refusal, image_to_numpy, numpy_to_image)
+from mot_planner_node.core.tracker import (
+    DEPLOYED,
+    FrameError,
+    FrameResult,
+    MotTracker,
+    deployed_config,
+)
+from vizzy_runtime.convert import (  # noqa: F401  the image reasons: this node's counter keys too
+    EMPTY_IMAGE,
+    IMAGE_REASONS,
+    SHORT_DATA,
+    SHORT_STEP,
+    TOO_LARGE,
+    UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING,
+    ConversionError,
+    image_refusal,
+    image_to_numpy,
+    numpy_to_image,
+)
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
@@ -226,7 +246,7 @@ DETECTOR_FACTORY: Callable[[dict[str, Any]], Detector] = make_hog_detector
 def planner_config(params: dict[str, Any]) -> PlannerConfig:
     return PlannerConfig(k_max=int(params['k_max']), s_max=float(params['s_max']),
                          alpha_c=float(params['alpha_c']), alpha_s=float(params['alpha_s']),
-                         budget_ms=float(params['budget_ms']), area=DEPLOYED['area'])
+                         budget_ms=float(params['budget_ms']), area=str(DEPLOYED['area']))
 
 
 def fixation_ray(u: float, v: float, k: list[float], depth: float) -> tuple[float, float, float]:
@@ -419,7 +439,9 @@ class MotPlannerNode(Node):
             self.input_health.refuse(self._image_topic, *problem)
             return
         image = image_to_numpy(msg)
-        bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else image
+        # 8-bit: image_problem admits rgb8 and bgr8 only
+        bgr = cast(NDArray[np.uint8],
+                   cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else image)
         tracker = self._tracker
         size = (int(image.shape[1]), int(image.shape[0]))
         if tracker.image_size is not None and size != tracker.image_size:
@@ -464,7 +486,7 @@ class MotPlannerNode(Node):
         """Ages (frames since birth) and frames_lost of every track, tentative ones included."""
         tracks = self._tracker.tracks
         alive = set()
-        for tid, hits in zip(tracks.ids.tolist(), tracks.hits.tolist()):
+        for tid, hits in zip(tracks.ids.tolist(), tracks.hits.tolist(), strict=True):
             alive.add(tid)
             if tid not in self._born:
                 self._born[tid] = result.frame
@@ -495,7 +517,8 @@ class MotPlannerNode(Node):
             return np.ones(n, dtype=bool)
         size = implied_size(result.boxes, np.reshape(self._k, (3, 3)), pose,
                             float(self._p['floor_z_m']))
-        self.last_implied_heights = dict(zip(result.ids.tolist(), size.height.tolist()))
+        self.last_implied_heights = dict(zip(result.ids.tolist(), size.height.tolist(),
+                                             strict=True))
         return self._persons.update(result.ids, size.height)
 
     # --- outputs ----------------------------------------------------------------------------
@@ -546,7 +569,8 @@ class MotPlannerNode(Node):
             x0, y0 = int(reg[0]), int(reg[1])
             x1, y1 = int(min(reg[2], rgb.shape[1])) - 1, int(min(reg[3], rgb.shape[0])) - 1
             cv2.rectangle(rgb, (x0, y0), (x1, y1), colour, 1)
-        for tid, box, person in zip(result.ids.tolist(), result.boxes, persons.tolist()):
+        for tid, box, person in zip(result.ids.tolist(), result.boxes, persons.tolist(),
+                                    strict=True):
             x, y, w, h = (int(round(v)) for v in box)
             colour = (0, 255, 0) if person else (150, 150, 150)   # grey: not on the floor
             cv2.rectangle(rgb, (x, y), (x + w, y + h), colour, 2)
@@ -593,7 +617,8 @@ class MotPlannerNode(Node):
         cmd.header.stamp = self.get_clock().now().to_msg()
         p = fixation_ray(float(u), float(v), self._k, float(self._p['gaze_depth_m']))
         if pose is not None:
-            p = tuple(float(c) for c in pose[:3, :3] @ np.asarray(p) + pose[:3, 3])
+            q = pose[:3, :3] @ np.asarray(p) + pose[:3, 3]
+            p = float(q[0]), float(q[1]), float(q[2])
             cmd.header.frame_id = self._p['world_frame'].lstrip('/')
         cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = p
         self._gaze_pub.publish(cmd)

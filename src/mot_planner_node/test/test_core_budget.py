@@ -117,7 +117,7 @@ def test_more_budget_reads_more_and_births_more_often() -> None:
 
 def test_same_seed_and_iterations_give_the_same_run() -> None:
     a, b = run_budgeted(0.1, n_frames=30), run_budgeted(0.1, n_frames=30)
-    for ra, rb in zip(a, b):
+    for ra, rb in zip(a, b, strict=True):
         np.testing.assert_array_equal(ra.ids, rb.ids)
         np.testing.assert_array_equal(ra.boxes, rb.boxes)
         np.testing.assert_array_equal(ra.regions, rb.regions)

@@ -5,8 +5,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mot_planner_node.core.egomotion import (rotation_between, rotation_homography, warp_beliefs,
-                                             warp_points)
+from mot_planner_node.core.egomotion import (
+    rotation_between,
+    rotation_homography,
+    warp_beliefs,
+    warp_points,
+)
 from mot_planner_node.core.metrics import MotEvaluator, summarize
 from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.simulated import SimulatedDetector

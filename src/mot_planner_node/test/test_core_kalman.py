@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 
 from mot_planner_node.core.association import associate, gate_threshold
-from mot_planner_node.core.kalman import (MotionModel, logdet_sigma, mahalanobis_sq, predict,
-                                          update, update_covariance)
+from mot_planner_node.core.kalman import (
+    MotionModel,
+    logdet_sigma,
+    mahalanobis_sq,
+    predict,
+    update,
+    update_covariance,
+)
 
 
 def one_target():

@@ -6,9 +6,15 @@ import pytest
 from mot_planner_node.core.kalman import MotionModel
 from mot_planner_node.core.observation import DetectorGeometry, ObservationModel
 from mot_planner_node.core.planner import MctsPlanner, PlannerConfig
-from mot_planner_node.core.regions import (centre_areas, check_action, constraint_areas,
-                                           full_frame_region, is_feasible, region_areas,
-                                           search_regions)
+from mot_planner_node.core.regions import (
+    centre_areas,
+    check_action,
+    constraint_areas,
+    full_frame_region,
+    is_feasible,
+    region_areas,
+    search_regions,
+)
 
 G = DetectorGeometry()          # HOG: 64x128, stride 8, step 1.05
 SIZE = (640, 480)
@@ -70,7 +76,7 @@ def test_planner_never_exceeds_k_max_or_s_max(area: str, k_max: int, s_max: floa
     cfg = PlannerConfig(k_max=k_max, s_max=s_max, area=area, budget_ms=None, max_iterations=60,
                         seed=1)
     planner = MctsPlanner(cfg, MotionModel(), ObservationModel(G))
-    for trial in range(15):
+    for _trial in range(15):
         K = int(rng.integers(0, 14))
         x = np.zeros((K, 6))
         x[:, 0] = rng.uniform(0, 640, K)

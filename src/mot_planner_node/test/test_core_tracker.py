@@ -3,13 +3,23 @@
 import numpy as np
 import pytest
 
-from mot_planner_node.core.detector import (HOG_SHRINK, BoxShrink, Detections, HogDetector,
-                                            box_iou, nms)
+from mot_planner_node.core.detector import (
+    HOG_SHRINK,
+    BoxShrink,
+    Detections,
+    HogDetector,
+    box_iou,
+    nms,
+)
 from mot_planner_node.core.metrics import MotEvaluator, summarize
 from mot_planner_node.core.observation import DetectorGeometry
 from mot_planner_node.core.planner import PlannerConfig
-from mot_planner_node.core.simulated import (SimulatedDetector, SyntheticScene, track_synthetic,
-                                             visibility)
+from mot_planner_node.core.simulated import (
+    SimulatedDetector,
+    SyntheticScene,
+    track_synthetic,
+    visibility,
+)
 from mot_planner_node.core.tracker import FrameError, MotTracker, TrackerConfig
 
 SIZE = (640, 480)

@@ -21,8 +21,7 @@ from mot_planner_node.core.observation import DetectorGeometry
 from vizzy_runtime.convert import numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import Context, Node, message, qos_profile_system_default
-from vizzy_runtime.testing import (publish_until, refused_once, reported_status, spinning,
-                                   wait_until)
+from vizzy_runtime.testing import publish_until, refused_once, reported_status, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -120,7 +119,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         ('step shorter than a row', _small(step=10)),        # a row of 8 rgb8 px is 24 bytes
     ]
     for reason, msg in bad_images:
-        assert refused_once(mot, executor, lambda: camera.image_pub.publish(msg),
+        assert refused_once(mot, executor, lambda msg=msg: camera.image_pub.publish(msg),
                              (image_topic, reason)), reason
     # an exception inside the callback is counted too (node_tools.guarded), and swallowed
     def broken(*args: Any, **kwargs: Any) -> Any:

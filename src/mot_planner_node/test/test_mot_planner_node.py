@@ -6,8 +6,12 @@ import numpy as np
 
 from mot_planner_node import node
 from vizzy_runtime.convert import numpy_to_image
-from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
-                                   parameter_refusals)
+from vizzy_runtime.testing import (
+    check_node_parameters,
+    check_parameter_table,
+    node_under_test,
+    parameter_refusals,
+)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'mot_planner.yaml'
 

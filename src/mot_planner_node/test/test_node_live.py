@@ -20,9 +20,15 @@ from mot_planner_node.core.detector import BoxShrink, Detections
 from mot_planner_node.core.observation import DetectorGeometry
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
 from vizzy_runtime.ros import (
-    Context, Node, Parameter, message, qos_profile_sensor_data, qos_profile_system_default)
-from vizzy_runtime.tf import TF_TOPIC
+    Context,
+    Node,
+    Parameter,
+    message,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
 from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.tf import TF_TOPIC
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -273,7 +279,7 @@ def _tf(stamp: Any, rotation: np.ndarray) -> Any:
 
 def _blobs(centres: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     image = np.full((HEIGHT, WIDTH, 3), 30, np.uint8)
-    for (u, v), (w, h) in zip(centres, sizes):
+    for (u, v), (w, h) in zip(centres, sizes, strict=True):
         x0, y0 = int(round(u - w / 2)), int(round(v - h / 2))
         image[max(y0, 0):y0 + int(h), max(x0, 0):x0 + int(w)] = 220
     return image
@@ -307,7 +313,7 @@ def test_ego_motion_from_tf_keeps_tracks_through_a_head_turn(graph, ego_motion) 
         msg = _image(_blobs(seen, sizes), frame)
         tf_pub.publish(_tf(msg.header.stamp, rotation))
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        assert wait_until(lambda: FRAME not in mot._orientations
+        assert wait_until(lambda stamp=stamp: FRAME not in mot._orientations
                           or (len(mot._orientations[FRAME])
                               and mot._orientations[FRAME]._t[-1] >= stamp - 1e-6),
                           TIMEOUT, spin=executor)

@@ -38,9 +38,10 @@ SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
 Processing never blocks the executor: callbacks only store messages; a worker thread takes the
 newest complete pair (older pairs are dropped: newest wins, one in flight) at most max_rate_hz
 times a second, so the node leaves CPU to the rest of the graph (a 640x480 log-polar pair costs
-about 85 ms of one core, mostly the UT of ~34,000 points; the matching about 13 ms). Bad input is refused and the ego-sphere stays consistent
-(SensoryEgoSphere.fuse validates everything before it changes state; degenerate geometry and NaN
-disparities inside a frame are dropped point by point, StereoFrame.rejected).
+about 85 ms of one core, mostly the UT of ~34,000 points; the matching about 13 ms). Bad input
+is refused and the ego-sphere stays consistent (SensoryEgoSphere.fuse validates everything
+before it changes state; degenerate geometry and NaN disparities inside a frame are dropped
+point by point, StereoFrame.rejected).
 
 Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health;
 logging and /diagnostics as its docstring says). The reasons (counter keys):
@@ -76,18 +77,41 @@ from typing import Any
 import numpy as np
 
 from stereo_ses_node.core.decision import (
-    ACQUISITIONS, choose_fixation, reachable_cells, reward_statistics)
+    ACQUISITIONS,
+    Decision,
+    choose_fixation,
+    reachable_cells,
+    reward_statistics,
+)
 from stereo_ses_node.core.information import information, information_from_precision
-from stereo_ses_node.core.ses import BIASES, GMM, SensoryEgoSphere
 from stereo_ses_node.core.multires import DisparityWindow, disparity_window
+from stereo_ses_node.core.ses import BIASES, GMM, FusionReport, SensoryEgoSphere
 from stereo_ses_node.core.stereo import SGBMParams, StereoFrame, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
-from vizzy_runtime.convert import (  # the image reasons are this node's counter keys too
-    EMPTY_IMAGE, IMAGE_REASONS, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING, ConversionError, array_to_pointcloud2, image_refusal, image_to_numpy)
+from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reasons are this
+    # node's counter keys too)
+    EMPTY_IMAGE,
+    IMAGE_REASONS,
+    SHORT_DATA,
+    SHORT_STEP,
+    TOO_LARGE,
+    UNCONVERTIBLE,
+    UNSUPPORTED_ENCODING,
+    ConversionError,
+    array_to_pointcloud2,
+    image_refusal,
+    image_to_numpy,
+)
 from vizzy_runtime.input_health import InputHealth
-from vizzy_runtime.node_tools import (LatestWorker, Param, declare_parameters, guarded,
-                                      main_for, publish_from_thread, replace_timer)
+from vizzy_runtime.node_tools import (
+    LatestWorker,
+    Param,
+    declare_parameters,
+    guarded,
+    main_for,
+    publish_from_thread,
+    replace_timer,
+)
 from vizzy_runtime.ros import ExternalShutdownException, Node, QoSProfile, message
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 
@@ -364,8 +388,8 @@ class StereoSesNode(Node):
         self.frames_skipped = 0
         self.frames_in_saccade = 0
         self.gaze_commands = 0
-        self.last_report = None
-        self.last_decision = None
+        self.last_report: FusionReport | None = None
+        self.last_decision: Decision | None = None
         self.processing_s: list[float] = []
 
         self._tf = TransformBuffer()
@@ -650,10 +674,10 @@ class StereoSesNode(Node):
         with self._lock:
             if time.monotonic() >= self._awaiting_saccade_until:
                 self._frames_since_settle += 1
-            check = (self._fixated is not None
-                     and self._frames_since_settle >= self._p['frames_per_fixation'])
-            if check:
-                cell, seen = self._fixated
+            fixated = self._fixated
+            if (fixated is not None
+                    and self._frames_since_settle >= self._p['frames_per_fixation']):
+                cell, seen = fixated
                 self._fixated = None
                 if self._ses.n_obs[cell] == seen:
                     # the fixation gave its cell no observation (the eyes sit in front of ego,

@@ -36,19 +36,29 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, NoReturn
+from typing import NoReturn
 
 import cv2
 import numpy as np
 
-from .core.multires import (MAX_LEVEL, DisparityResult, DisparityWindow, FoveatedSGBM,
-                            SGBMParams,
-                            cartesian_disparity, coarse_window, full_disparity, parallel_window)
+from .core.multires import (
+    MAX_LEVEL,
+    DisparityResult,
+    DisparityWindow,
+    FoveatedSGBM,
+    SGBMParams,
+    cartesian_disparity,
+    coarse_window,
+    full_disparity,
+    parallel_window,
+)
 
 PROG = 'stereo_file'
 SENSORS = ('logpolar', 'cartesian', 'full')
 DEFAULT_NEAR_M = 0.3
+_SGBM_DEFAULTS = SGBMParams()   # frozen: one shared default instance is safe
 
 
 class _Parser(argparse.ArgumentParser):
@@ -128,7 +138,7 @@ def search_window(args: argparse.Namespace, width: int) -> DisparityWindow:
 
 
 def compute(left: np.ndarray, right: np.ndarray, sensor: str, window: DisparityWindow,
-            fixation: tuple[float, float], n_rf: int, params: SGBMParams = SGBMParams(),
+            fixation: tuple[float, float], n_rf: int, params: SGBMParams = _SGBM_DEFAULTS,
             max_level: int = MAX_LEVEL) -> tuple[DisparityResult, dict]:
     """(result, extra JSON fields); the set-up (retina geometry, level maps) is not timed."""
     h, w = left.shape[:2]

@@ -3,8 +3,12 @@
 import numpy as np
 import pytest
 
-from stereo_ses_node.core.decision import (acquisition_scores, choose_fixation,
-                                           reachable_cells, reward_statistics)
+from stereo_ses_node.core.decision import (
+    acquisition_scores,
+    choose_fixation,
+    reachable_cells,
+    reward_statistics,
+)
 
 
 def cells():

@@ -6,8 +6,12 @@ import numpy as np
 import pytest
 
 from stereo_ses_node.core.information import (
-    SearchMetrics, average_information, information, information_from_precision,
-    local_information)
+    SearchMetrics,
+    average_information,
+    information,
+    information_from_precision,
+    local_information,
+)
 
 
 def test_information_is_minus_log_det():

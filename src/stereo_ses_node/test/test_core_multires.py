@@ -9,10 +9,18 @@ import pytest
 
 from foveation_node.core.logpolar import LogPolarRetina
 from stereo_ses_node.core.geometry import epipolar_distance, vergence_poses
-from stereo_ses_node.core.multires import (DisparityWindow, FoveatedSGBM, SGBMParams,
-                                           bad_fraction, cartesian_disparity, coarse_window,
-                                           disparity_window, full_disparity, parallel_window,
-                                           sgbm_window)
+from stereo_ses_node.core.multires import (
+    DisparityWindow,
+    FoveatedSGBM,
+    SGBMParams,
+    bad_fraction,
+    cartesian_disparity,
+    coarse_window,
+    disparity_window,
+    full_disparity,
+    parallel_window,
+    sgbm_window,
+)
 from stereo_ses_node.core.sensors import fovea_radius
 from stereo_ses_node.core.stereo import StereoPipeline
 from stereo_ses_node.core.synthetic import Layer, layered_pair, plane_texture, random_layers

@@ -3,8 +3,14 @@
 import numpy as np
 import pytest
 
-from stereo_ses_node.core.ses import (BIASES, GMM, SensoryEgoSphere, SphereLookup,
-                                      brute_force_associate, sample_directions)
+from stereo_ses_node.core.ses import (
+    BIASES,
+    GMM,
+    SensoryEgoSphere,
+    SphereLookup,
+    brute_force_associate,
+    sample_directions,
+)
 
 
 def unit(rng, n):
@@ -109,7 +115,7 @@ def test_bad_observations_skipped_and_sphere_consistent():
         ses.fuse(np.zeros((3, 3)), np.zeros((2, 3, 3)))
     with pytest.raises(ValueError, match='rigid'):
         ses.fuse(np.ones((1, 3)), np.eye(3)[None], np.zeros((4, 4)))
-    for arr, ref in zip((ses.mean, ses.cov, ses.info), before):
+    for arr, ref in zip((ses.mean, ses.cov, ses.info), before, strict=True):
         np.testing.assert_array_equal(arr, ref)
     good = np.eye(3)[None] * 0.01
     means = np.array([[1.0, 0, 0], [np.nan, 0, 0], [0, 1.0, 0], [0, 0, 0], [0, 0, 1.0]])

@@ -5,8 +5,14 @@ import pytest
 
 from stereo_ses_node.core.geometry import project, triangulate_midpoint, vergence_poses
 from stereo_ses_node.core.sensors import cartesian_sensor
-from stereo_ses_node.core.ut import (SigmaPointTable, StereoRig, UTParams, linearized_triangulate,
-                                     monte_carlo_triangulate, unscented_transform)
+from stereo_ses_node.core.ut import (
+    SigmaPointTable,
+    StereoRig,
+    UTParams,
+    linearized_triangulate,
+    monte_carlo_triangulate,
+    unscented_transform,
+)
 
 F = 320.0 / np.tan(np.radians(85.4 / 2))       # Vizzy eye camera: 640x480, 85.4 deg
 K = np.array([[F, 0, 319.5], [0, F, 239.5], [0, 0, 1.0]])
@@ -154,5 +160,5 @@ def test_table_transform_equals_sigma_point_array_path():
     ref = unscented_transform(rig, table.sigma_points(ul, ur, il, ir), table.wm, table.wc)
     got = table.transform(rig, ul, ur, il, ir)
     assert 0 < np.sum(got[2]) < got[2].size               # some rows invalid (behind a camera)
-    for a, b in zip(got, ref):
+    for a, b in zip(got, ref, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15, equal_nan=True)

@@ -19,9 +19,15 @@ from stereo_ses_node.core.synthetic import plane_texture, render_plane
 from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import (
-    Context, Node, Parameter, message, qos_profile_latched, qos_profile_system_default)
-from vizzy_runtime.tf import TF_STATIC_TOPIC
+    Context,
+    Node,
+    Parameter,
+    message,
+    qos_profile_latched,
+    qos_profile_system_default,
+)
 from vizzy_runtime.testing import reported_status, spinning, wait_until
+from vizzy_runtime.tf import TF_STATIC_TOPIC
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -45,7 +51,8 @@ FRAMES = {'left': 'left_camera_optical_frame', 'right': 'right_camera_optical_fr
 EGO_CYC = np.eye(4)
 EGO_CYC[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 EGO_CYC[:3, 3] = [0.1, 0.0, 0.0]
-POSES = dict(zip(('left', 'right'), vergence_poses(BASELINE, 2 * np.arctan(0.102 / DEPTH))))
+POSES = dict(zip(('left', 'right'), vergence_poses(BASELINE, 2 * np.arctan(0.102 / DEPTH)),
+                 strict=True))
 
 
 def _stamped(parent: str, child: str, pose: np.ndarray) -> Any:
@@ -146,7 +153,7 @@ def _settled(ses: Any, executor: Any) -> bool:
         if not wait_until(idle, TIMEOUT, spin=executor):
             return False
         before = ses.pairs_received
-        wait_until(lambda: ses.pairs_received > before, 0.1, spin=executor)
+        wait_until(lambda before=before: ses.pairs_received > before, 0.1, spin=executor)
         if ses.pairs_received == before and idle():
             return True
     return False

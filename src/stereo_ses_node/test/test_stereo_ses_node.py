@@ -8,8 +8,12 @@ import numpy as np
 from stereo_ses_node import node
 from stereo_ses_node.core.ses import SensoryEgoSphere
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
-from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
-                                   parameter_refusals)
+from vizzy_runtime.testing import (
+    check_node_parameters,
+    check_parameter_table,
+    node_under_test,
+    parameter_refusals,
+)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'stereo_ses.yaml'
 

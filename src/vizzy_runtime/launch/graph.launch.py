@@ -13,13 +13,13 @@ whose bare keys read `/**/sim` (the same at the root). The same as `vizzy launch
 import os
 import tempfile
 
+import yaml
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, GroupAction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node, PushROSNamespace, SetRemap
 from launch_ros.parameter_descriptions import ParameterValue
-import yaml
 
 
 def _load_graph(path: str) -> dict:
@@ -75,7 +75,8 @@ def generate_launch_description() -> LaunchDescription:
             parameters.append({'use_sim_time': ParameterValue(
                 LaunchConfiguration('use_sim_time'), value_type=bool)})
         respawn = {'respawn': bool(entry.get('respawn', graph.get('respawn', False))),
-                   'respawn_delay': float(entry.get('respawn_delay', graph.get('respawn_delay', 0.0)))}
+                   'respawn_delay': float(entry.get('respawn_delay',
+                                                    graph.get('respawn_delay', 0.0)))}
         if 'respawn_max_retries' in entry:
             respawn['respawn_max_retries'] = int(entry['respawn_max_retries'])
         group.append(Node(

@@ -19,7 +19,8 @@ MESSAGE_DATA = 0x01   # binary opcode: subscription id (u32 LE), log time (u64 L
 @dataclass
 class Session:
     server_info: dict[str, Any] = field(default_factory=dict)
-    channels: dict[str, dict[str, Any]] = field(default_factory=dict)   # topic -> advertised channel
+    # topic -> advertised channel
+    channels: dict[str, dict[str, Any]] = field(default_factory=dict)
     first: dict[str, bytes] = field(default_factory=dict)              # topic -> first payload
 
 
@@ -30,7 +31,8 @@ async def _collect(url: str, topics: set[str], timeout: float) -> Session:
     async with websockets.connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
         while time.monotonic() < deadline and not topics <= set(session.first):
             try:
-                frame = await asyncio.wait_for(ws.recv(), timeout=max(0.1, deadline - time.monotonic()))
+                frame = await asyncio.wait_for(ws.recv(),
+                                               timeout=max(0.1, deadline - time.monotonic()))
             except asyncio.TimeoutError:
                 break
             if isinstance(frame, str):

@@ -42,7 +42,8 @@ def subscriber(node: Node, topic: str, lines: 'list[str]', deadline: float) -> N
     def on_image(_msg) -> None:
         count[0] += 1
         say(f'got {count[0]}')
-    node.create_subscription(message('sensor_msgs/msg/Image'), topic, on_image, qos_profile_sensor_data)
+    node.create_subscription(message('sensor_msgs/msg/Image'), topic, on_image,
+                             qos_profile_sensor_data)
     say('ready')
     matched = False
     while 'stop' not in lines and time.monotonic() < deadline:

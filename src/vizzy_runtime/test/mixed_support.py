@@ -6,19 +6,20 @@ Imported by path (pytest runs with --import-mode=importlib): `sys.path.insert(0,
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import yaml
 
 from vizzy_runtime import dds, msgs
 from vizzy_runtime.launcher import default_graph_file
 from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python
-
 
 # SIGINT to SIGTERM for nodes still running when a launcher stops them: a node busy in a
 # long computation (the cylinder detector's first cloud) on a loaded 2-core machine needs more
@@ -47,7 +48,7 @@ class RealProcess:
 
     def __init__(self, args: Sequence[str], log: Path, env: dict[str, str] | None = None) -> None:
         self.log_path = log
-        self._log = open(log, 'w')
+        self._log = open(log, 'w')  # noqa: SIM115 - the process's output, closed in stop()
         self.proc = subprocess.Popen([str(real_rclpy_python()), *args], env=env or real_rclpy_env(),
                                      stdout=self._log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
@@ -71,10 +72,8 @@ class RealProcess:
                     os.killpg(self.proc.pid, sig)
             except ProcessLookupError:
                 pass
-            try:
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 self.proc.wait(grace)
-            except subprocess.TimeoutExpired:
-                pass
         self._log.close()
         return self.proc.poll()
 
@@ -102,7 +101,8 @@ class Flow:
         """Topics heard so far (polls the readers)."""
         for ep in self.disc.endpoints():
             if ep.is_writer and ep.topic in self.topics and ep.topic not in self.readers:
-                self.readers[ep.topic] = (dds.RawReader(ep.topic, ep.typename, dds.QoS(reliable=False)),
+                self.readers[ep.topic] = (dds.RawReader(ep.topic, ep.typename,
+                                                        dds.QoS(reliable=False)),
                                           ep.typename)
         for topic, (reader, typename) in self.readers.items():
             batch = reader.take(16)

@@ -1,4 +1,5 @@
-"""A second process for the transport tests: relays /relay_in to /relay_out (any --type), via the rclpy API."""
+"""A second process for the transport tests: relays /relay_in to /relay_out (any --type), via the
+rclpy API."""
 
 import sys
 

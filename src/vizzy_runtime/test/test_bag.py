@@ -14,15 +14,20 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
-from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
-                                QosTime)
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
 from rosbags.rosbag2 import Reader as RosbagsReader
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as RosbagsWriter
 
 from vizzy_runtime import msgs
-from vizzy_runtime.bag import (BagError, BagReader, BagWriter, Player, QosProfile, bag_info,
-                               reindex)
+from vizzy_runtime.bag import BagError, BagReader, BagWriter, Player, QosProfile, bag_info, reindex
 from vizzy_runtime.bag.common import INFINITE_NS, parse_qos_profiles
 from vizzy_runtime.bag.play import ensure_type, offer_qos
 

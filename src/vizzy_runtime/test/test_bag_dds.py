@@ -11,8 +11,8 @@ import sys
 import textwrap
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -87,7 +87,7 @@ def test_play_then_record_round_trip(tmp_path: Path) -> None:
     assert got == sent  # byte for byte, in order
     assert reader.topics['/static'].offered_qos_profiles[0].durability == 'transient_local'
     assert reader.topics['/talk'].offered_qos_profiles[0].reliability == 'reliable'
-    gaps = [(b - a) / 1e9 for a, b in zip(times, times[1:])]
+    gaps = [(b - a) / 1e9 for a, b in zip(times, times[1:], strict=False)]
     # rate 2: 100 ms gaps become ~50 ms; generous bounds, but far from rate 1 (100 ms)
     assert 0.03 < statistics.median(gaps) < 0.075, gaps
     assert 0.3 < (times[-1] - times[0]) / 1e9 < 0.7, gaps
@@ -158,7 +158,8 @@ def test_recorder_skips_excluded_topics(tmp_path):
 
 FULL_DISK_RECORDER = textwrap.dedent('''
     import resource, signal, sys
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past the limit, writes fail (EFBIG) as on a full disk
+    # past the limit, writes fail (EFBIG) as on a full disk
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     resource.setrlimit(resource.RLIMIT_FSIZE, (600_000, 600_000))
     from vizzy_runtime.cli import main
     sys.exit(main(sys.argv[1:]))
@@ -169,16 +170,20 @@ def test_a_full_disk_ends_recording_with_one_line_and_a_readable_bag(tmp_path: P
     from vizzy_runtime import dds
     writer = dds.RawWriter('/filler', 'std_msgs/msg/String', dds.QoS(reliable=True, depth=50))
     bag = tmp_path / 'bag'
-    recorder = subprocess.Popen([sys.executable, '-c', FULL_DISK_RECORDER, 'bag', 'record', '-o', str(bag),
-                                 '/filler'], env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    recorder = subprocess.Popen([sys.executable, '-c', FULL_DISK_RECORDER, 'bag', 'record', '-o',
+                                 str(bag),
+                                 '/filler'], env=env(), stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE,
                                 text=True)
     try:
-        wait_for(lambda: writer.matched_count() > 0 or recorder.poll() is not None, 30, 'the recorder')
+        wait_for(lambda: writer.matched_count() > 0 or recorder.poll() is not None, 30,
+                 'the recorder')
         rng = random.Random(1)
         deadline = time.monotonic() + 60
         i = 0
         while recorder.poll() is None and time.monotonic() < deadline:  # incompressible text
-            writer.write(wire(f'{i} ' + ''.join(rng.choice('abcdefghij0123456789') for _ in range(20_000))))
+            writer.write(wire(f'{i} '
+                              + ''.join(rng.choice('abcdefghij0123456789') for _ in range(20_000))))
             i += 1
             time.sleep(0.002)
         _out, err = recorder.communicate(timeout=60)
@@ -187,7 +192,8 @@ def test_a_full_disk_ends_recording_with_one_line_and_a_readable_bag(tmp_path: P
             recorder.kill()
     lines = err.strip().splitlines()
     assert recorder.returncode == 2, err
-    assert 'Traceback' not in err and lines[-1].startswith('vizzy: ') and 'File too large' in lines[-1], err
+    assert ('Traceback' not in err and lines[-1].startswith('vizzy: ')
+            and 'File too large' in lines[-1]), err
     assert 'vizzy bag reindex' in lines[-1], err
     reader = BagReader(bag, repair=False)  # readable as it is, up to its last complete chunk
     got = [m.data for m in reader.messages()]

@@ -26,16 +26,18 @@ OUTPUTS = {   # node -> its main output (one message per input frame, pair or cl
 }
 BAGS = ('tabletop', 'visual_search', 'pedestrians')
 # what each scene must show beyond "every node answers": (node, list field, at least)
-SHOWS = {'tabletop': ('cylinder_detector', 'cylinders', 1), 'pedestrians': ('mot_planner', 'tracks', 1)}
+SHOWS = {'tabletop': ('cylinder_detector', 'cylinders', 1),
+         'pedestrians': ('mot_planner', 'tracks', 1)}
 
 
 @pytest.mark.parametrize('scene', BAGS)
 def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str) -> None:
     bag = repo_root() / 'bags' / scene
     path = graph_subset(tmp_path / 'graph.yaml', list(OUTPUTS), use_sim_time=True)
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(load_graph(path), output=log)
-    readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=100)) for n, (t, ty) in OUTPUTS.items()}
+    readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=100))
+               for n, (t, ty) in OUTPUTS.items()}
     disc = dds.Discovery()
     got: dict[str, int] = dict.fromkeys(OUTPUTS, 0)
     kept: dict[str, list[bytes]] = {n: [] for n in OUTPUTS}
@@ -44,7 +46,8 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
     try:
         launcher.start()
         topics = {t for t, _ in OUTPUTS.values()}
-        assert wait_until(lambda: topics <= {e.topic for e in disc.endpoints() if e.is_writer}, 120), \
+        assert wait_until(lambda: topics <= {e.topic for e in disc.endpoints() if e.is_writer},
+                          120), \
             'the nodes did not come up'
         thread = threading.Thread(target=lambda: played.update(player.run(handle_signals=False)))
         thread.start()
@@ -71,5 +74,6 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
     assert launcher.failed(codes) == {}, text[-3000:]
     if scene in SHOWS:
         node, field, least = SHOWS[scene]
-        most = max(len(getattr(msgs.deserialize(raw, OUTPUTS[node][1]), field)) for raw in kept[node])
+        most = max(len(getattr(msgs.deserialize(raw, OUTPUTS[node][1]), field))
+                   for raw in kept[node])
         assert most >= least, f'{scene}: {node} never reported {field} ({len(kept[node])} messages)'

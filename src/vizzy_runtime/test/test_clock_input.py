@@ -22,7 +22,8 @@ def _clock(sec: int, nanosec: int) -> object:
 
 
 def test_invalid_clock_samples_are_refused_and_counted(context, capfd):
-    node = Node('clock_subject', context=context, parameter_overrides=[Parameter('use_sim_time', value=True)])
+    node = Node('clock_subject', context=context,
+                parameter_overrides=[Parameter('use_sim_time', value=True)])
     source = Node('clock_junk', context=context)
     pub = source.create_publisher(Clock, '/clock', 10)
     executor = SingleThreadedExecutor(context=context)
@@ -42,10 +43,11 @@ def test_invalid_clock_samples_are_refused_and_counted(context, capfd):
     assert wait_until(lambda: pub.get_subscription_count() > 0, 20)
     pub.publish(_clock(5, 0))
     assert spin_until(lambda: node.get_clock().now().nanoseconds == 5_000_000_000)
-    junk = (_clock(-1, 0), _clock(-2**31, 999_999_999), _clock(7, 1_000_000_000), _clock(8, 2**32 - 1))
+    junk = (_clock(-1, 0), _clock(-2**31, 999_999_999), _clock(7, 1_000_000_000),
+            _clock(8, 2**32 - 1))
     for count, msg in enumerate(junk, 1):  # one at a time: /clock subscriptions keep the last only
         pub.publish(msg)
-        assert spin_until(lambda: node.clock_refused == count)
+        assert spin_until(lambda count=count: node.clock_refused == count)
     assert node.get_clock().now().nanoseconds == 5_000_000_000  # unchanged by junk
     pub.publish(_clock(6, 500_000_000))
     assert spin_until(lambda: node.get_clock().now().nanoseconds == 6_500_000_000)

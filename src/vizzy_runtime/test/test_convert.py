@@ -4,8 +4,13 @@ import numpy as np
 import pytest
 
 from vizzy_runtime import msgs
-from vizzy_runtime.convert import (ConversionError, array_to_pointcloud2, image_to_numpy, numpy_to_image,
-                                   pointcloud2_to_array)
+from vizzy_runtime.convert import (
+    ConversionError,
+    array_to_pointcloud2,
+    image_to_numpy,
+    numpy_to_image,
+    pointcloud2_to_array,
+)
 
 
 def test_image_round_trip_through_cdr():
@@ -28,9 +33,11 @@ def test_image_with_row_padding():
 def test_image_errors_name_the_problem():
     Image = msgs.get_message('sensor_msgs/msg/Image')
     with pytest.raises(ConversionError, match="unsupported image encoding 'yuv422'"):
-        image_to_numpy(Image(height=1, width=1, encoding='yuv422', step=2, data=np.zeros(2, np.uint8)))
+        image_to_numpy(Image(height=1, width=1, encoding='yuv422', step=2,
+                             data=np.zeros(2, np.uint8)))
     with pytest.raises(ConversionError, match='expected 12'):
-        image_to_numpy(Image(height=2, width=2, encoding='rgb8', step=6, data=np.zeros(5, np.uint8)))
+        image_to_numpy(Image(height=2, width=2, encoding='rgb8', step=6,
+                             data=np.zeros(5, np.uint8)))
     with pytest.raises(ConversionError, match='empty image'):
         image_to_numpy(Image(encoding='rgb8'))
     with pytest.raises(ConversionError, match='does not fit'):
@@ -45,7 +52,8 @@ def test_organized_pointcloud_round_trip():
     pts['cov'][..., 2] = 7
     msg = msgs.deserialize(msgs.serialize(array_to_pointcloud2(pts)), 'sensor_msgs/msg/PointCloud2')
     assert (msg.height, msg.width, msg.is_dense) == (3, 4, False)
-    assert [f.name for f in msg.fields] == ['x', 'y', 'z', 'rgb', 'cov'] and msg.fields[4].count == 6
+    assert [f.name for f in msg.fields] == ['x', 'y', 'z', 'rgb',
+                                            'cov'] and msg.fields[4].count == 6
     back = pointcloud2_to_array(msg)
     np.testing.assert_array_equal(back['x'], pts['x'])
     assert np.isnan(back['z'][0, 0]) and (back['cov'][..., 2] == 7).all()
@@ -59,8 +67,16 @@ def test_pointcloud_too_short_is_an_error():
 
 
 def test_image_refusal_names_the_reason_and_the_values():
-    from vizzy_runtime.convert import (EMPTY_IMAGE, SHORT_DATA, SHORT_STEP, TOO_LARGE, UNCONVERTIBLE,
-                                       UNSUPPORTED_ENCODING, image_refusal, numpy_to_image)
+    from vizzy_runtime.convert import (
+        EMPTY_IMAGE,
+        SHORT_DATA,
+        SHORT_STEP,
+        TOO_LARGE,
+        UNCONVERTIBLE,
+        UNSUPPORTED_ENCODING,
+        image_refusal,
+        numpy_to_image,
+    )
     rgb = {'rgb8': 3, 'bgr8': 3}
     ok = numpy_to_image(np.zeros((4, 5, 3), np.uint8), 'rgb8')
     assert image_refusal(ok, rgb) is None

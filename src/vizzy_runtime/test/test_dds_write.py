@@ -25,7 +25,8 @@ def on_data(reader):
 
 reader = dds.RawReader(topic, 'std_msgs/msg/String', qos, on_data=on_data)
 writer = dds.RawWriter(topic, 'std_msgs/msg/String', qos)
-payload = bytes(msgs.serialize(msgs.get_message('std_msgs/msg/String')(data='x'), 'std_msgs/msg/String'))
+payload = bytes(msgs.serialize(msgs.get_message('std_msgs/msg/String')(data='x'),
+                               'std_msgs/msg/String'))
 first = threading.Thread(target=writer.write, args=(payload,))
 second = threading.Thread(target=lambda: (in_listener.wait(5), writer.write(payload)))
 first.start(); second.start(); first.join(); second.join()

@@ -25,7 +25,8 @@ def test_story_counts_gaze_holders_saccades_and_findings() -> None:
         FoveatedDetection(label='jar', score=0.4, pass_index=1),
         FoveatedDetection(label='box', score=0.6, pass_index=1)]))
     lines = story.lines()
-    assert lines[0] == 'gaze held by: foveation 60%, idle 20%, stereo_ses 20% of the time; 2 saccades'
+    assert lines[0] == ('gaze held by: foveation 60%, idle 20%, stereo_ses 20% of the time; '
+                        '2 saccades')
     assert 'gaze commands: stereo_ses 2' in lines
     assert '/cylinders: at most 2 in one message' in lines
     assert lines[-1] == 'foveation best label per recognition: box x1'

@@ -30,7 +30,8 @@ def header(t_ns: int, frame: str) -> Any:
 
 
 def transform(parent: str, child: str, t_ns: int, xyz: tuple, quat: tuple) -> Any:
-    return M('geometry_msgs/msg/TransformStamped', header=header(t_ns, parent), child_frame_id=child,
+    return M('geometry_msgs/msg/TransformStamped', header=header(t_ns, parent),
+             child_frame_id=child,
              transform=M('geometry_msgs/msg/Transform',
                          translation=M('geometry_msgs/msg/Vector3', x=xyz[0], y=xyz[1], z=xyz[2]),
                          rotation=M('geometry_msgs/msg/Quaternion', x=quat[0], y=quat[1],
@@ -85,22 +86,27 @@ def perception_samples() -> list[tuple[str, str, int, Any]]:
                       in_saccade=i == 3, active_source='foveation' if i else '',
                       version=0.05 * i, vergence=0.1, tilt=0.2)))
     box = M('sensor_msgs/msg/RegionOfInterest', x_offset=10, y_offset=12, width=20, height=15)
-    out.append(('/foveation/detections', 'active_vision_msgs/msg/FoveatedDetectionArray', 2 * S + 50,
+    out.append(('/foveation/detections', 'active_vision_msgs/msg/FoveatedDetectionArray',
+                2 * S + 50,
                 M('active_vision_msgs/msg/FoveatedDetectionArray',
-                  header=header(2 * S, 'left_camera_optical_frame'), fixation_u=31.5, fixation_v=23.5,
+                  header=header(2 * S, 'left_camera_optical_frame'), fixation_u=31.5,
+                  fixation_v=23.5,
                   detections=[M('active_vision_msgs/msg/FoveatedDetection', label='can', score=0.8,
                                 box=box, pass_index=1)])))
     pts = np.array([[0.0, 0.0, 2.0], [0.2, 0.1, 2.5], [-0.3, 0.0, 1.5]])
     out.append(('/stereo/points', 'sensor_msgs/msg/PointCloud2', 2 * S + 60,
                 cloud(2 * S, 'left_camera_optical_frame', pts, information=True)))
     out.append(('/ses/cells', 'sensor_msgs/msg/PointCloud2', 2 * S + 70,
-                cloud(2 * S, 'ego', np.array([[1.0, 0.0, 0.0], [1.5, 0.5, 0.2]]), information=True)))
+                cloud(2 * S, 'ego', np.array([[1.0, 0.0, 0.0], [1.5, 0.5, 0.2]]),
+                      information=True)))
     for i in range(4):
         t = S + i * S // 4
         out.append(('/mot/tracks', 'active_vision_msgs/msg/TrackArray', t + 80,
-                    M('active_vision_msgs/msg/TrackArray', header=header(t, 'left_camera_optical_frame'),
+                    M('active_vision_msgs/msg/TrackArray',
+                      header=header(t, 'left_camera_optical_frame'),
                       tracks=[M('active_vision_msgs/msg/Track', id=tid, label='person',
-                                center_u=10.0 + 5 * i + 20 * tid, center_v=20.0, width=8.0, height=16.0)
+                                center_u=10.0 + 5 * i + 20 * tid, center_v=20.0, width=8.0,
+                                height=16.0)
                               for tid in (1, 2)])))
     return out
 
@@ -168,7 +174,8 @@ def test_cylinders_against_ground_truth(tmp_path: Path) -> None:
 
     can = M('visualization_msgs/msg/Marker', header=header(0, 'base_link'), ns='objects', id=1,
             type=3, action=0, text='can_0',
-            pose=M('geometry_msgs/msg/Pose', position=M('geometry_msgs/msg/Point', x=1.0, y=0.2, z=0.3),
+            pose=M('geometry_msgs/msg/Pose',
+                   position=M('geometry_msgs/msg/Point', x=1.0, y=0.2, z=0.3),
                    orientation=M('geometry_msgs/msg/Quaternion', w=1.0)),
             scale=M('geometry_msgs/msg/Vector3', x=0.066, y=0.066, z=0.12))
     samples = perception_samples() + [

@@ -38,14 +38,15 @@ def test_the_layout_file_is_the_generated_one() -> None:
 
 def test_a_bad_port_is_one_clear_error() -> None:
     view = LiveView(port=70000)
-    with pytest.raises(Exception):
+    with pytest.raises(OverflowError):  # the port does not fit 16 bits
         view.start()
     view.stop()
 
 
-@pytest.mark.live  # on the real tier the nodes run on the real rclpy (Fast DDS); the view on Cyclone
+# on the real tier the nodes run on the real rclpy (Fast DDS); the view on Cyclone
+@pytest.mark.live
 def test_foxglove_client_decodes_the_graph(tmp_path: Path) -> None:
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(load_graph(default_graph_file()), output=log)
     view = LiveView(port=0)
     port = view.start()
@@ -60,18 +61,22 @@ def test_foxglove_client_decodes_the_graph(tmp_path: Path) -> None:
         log.seek(0)
         text = log.read()
     missing = set(DECODED) - set(session.first)
-    assert not missing, f'no message on {missing}; channels {sorted(session.channels)}; log:\n{text[-2000:]}'
+    assert not missing, (f'no message on {missing}; channels {sorted(session.channels)}; '
+                         f'log:\n{text[-2000:]}')
     for topic, typename in DECODED.items():
         ch = session.channels[topic]
-        assert (ch['schemaName'], ch['schemaEncoding'], ch['encoding']) == (typename, 'ros2msg', 'cdr')
+        assert ((ch['schemaName'], ch['schemaEncoding'], ch['encoding'])
+                == (typename, 'ros2msg', 'cdr'))
         assert ch['schema'] == msgs.message_definition(typename)
     # what the Foxglove app would decode, decoded here from the bytes the client received
-    image = msgs.deserialize(session.first['/vizzy/left/image_raw'], DECODED['/vizzy/left/image_raw'])
+    image = msgs.deserialize(session.first['/vizzy/left/image_raw'],
+                             DECODED['/vizzy/left/image_raw'])
     pixels = image_to_numpy(image)
     assert pixels.shape[:2] == (image.height, image.width) and pixels.std() > 0
     cloud = msgs.deserialize(session.first['/stereo/points'], DECODED['/stereo/points'])
     assert {'x', 'y', 'z', 'information'} <= {f.name for f in cloud.fields}
-    markers = msgs.deserialize(session.first['/sim/ground_truth/objects'], DECODED['/sim/ground_truth/objects'])
+    markers = msgs.deserialize(session.first['/sim/ground_truth/objects'],
+                               DECODED['/sim/ground_truth/objects'])
     assert markers.markers and all(np.isfinite(m.pose.position.x) for m in markers.markers)
     tf = msgs.deserialize(session.first['/tf'], DECODED['/tf'])
     assert tf.transforms and all(t.header.frame_id and t.child_frame_id for t in tf.transforms)

@@ -23,7 +23,8 @@ def test_mutations_are_reproducible_and_varied():
     first = Mutator('sensor_msgs/msg/Image', 7)
     second = Mutator('sensor_msgs/msg/Image', 7)
     draws = [first.next() for _ in range(300)]
-    assert [(k, len(d)) for k, d in draws] == [(k, len(d)) for k, d in (second.next() for _ in range(300))]
+    assert [(k, len(d)) for k, d in draws] == [(k, len(d))
+                                               for k, d in (second.next() for _ in range(300))]
     assert {kind for kind, _ in draws} == {'field', 'type-aware', 'malformed CDR'}
     assert len({data for _, data in draws}) > 250
 

@@ -1,4 +1,5 @@
-"""ros_discovery_info: what real ROS 2 tools read to know our nodes (vizzy_runtime.rclpy_compat.graph).
+"""ros_discovery_info: what real ROS 2 tools read to know our nodes
+(vizzy_runtime.rclpy_compat.graph).
 
 Nodes here run without parameter services (test_param_services checks theirs are announced too).
 Checked from the outside with plain Cyclone DDS (an observer participant with rmw_cyclonedds_cpp's
@@ -17,8 +18,9 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -29,8 +31,12 @@ if dds._participant is None:  # the process's participant does not exist yet: pi
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 
 from cyclonedds._clayer import ddspy_take  # noqa: E402
-from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsParticipant,  # noqa: E402
-                                BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription)
+from cyclonedds.builtin import (  # noqa: E402
+    BuiltinDataReader,
+    BuiltinTopicDcpsParticipant,
+    BuiltinTopicDcpsPublication,
+    BuiltinTopicDcpsSubscription,
+)
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.qos import Policy, Qos  # noqa: E402
 from cyclonedds.sub import DataReader  # noqa: E402
@@ -79,11 +85,13 @@ suffix = sys.argv[1]
 ctx = Context()
 ctx.init(args=[])
 S = msgs.get_message('std_msgs/msg/String')
-talker = Node('talker_' + suffix, namespace='/graph_test', context=ctx, start_parameter_services=False)
+talker = Node('talker_' + suffix, namespace='/graph_test', context=ctx,
+              start_parameter_services=False)
 pub = talker.create_publisher(S, 'chatter', 10)
 listener = Node('listener_' + suffix, context=ctx, start_parameter_services=False)
 sub = listener.create_subscription(S, '/graph_test/chatter', lambda m: None, 10)
-print(json.dumps({'participant': dds.participant().guid.bytes.hex(), 'talker_writer': pub.guid.hex(),
+print(json.dumps({'participant': dds.participant().guid.bytes.hex(),
+                  'talker_writer': pub.guid.hex(),
                   'listener_reader': sub.guid.hex(),
                   'talker_events': talker._parameter_event_publisher.guid.hex(),
                   'listener_events': listener._parameter_event_publisher.guid.hex(),
@@ -117,7 +125,8 @@ class Child:
         try:
             return json.loads(self._lines.get(timeout=TIMEOUT))
         except queue.Empty:
-            raise AssertionError(f'child said nothing within {TIMEOUT} s (exit code {self.proc.poll()})') from None
+            raise AssertionError(f'child said nothing within {TIMEOUT} s (exit code '
+                                 f'{self.proc.poll()})') from None
 
     def send(self, line: str) -> None:
         assert self.proc.stdin is not None
@@ -141,9 +150,11 @@ class Observer:
     by Cyclone's own deserializer of dds.idl_type(ParticipantEntitiesInfo)."""
 
     def __init__(self) -> None:
-        dds.participant()  # the domain (loopback configuration) exists before this participant joins
+        # the domain (loopback configuration) exists before this participant joins
+        dds.participant()
         self.dp = DomainParticipant(dds.domain_id())
-        qos = Qos(Policy.Reliability.Reliable(max_blocking_time=100_000_000), Policy.Durability.TransientLocal,
+        qos = Qos(Policy.Reliability.Reliable(max_blocking_time=100_000_000),
+                  Policy.Durability.TransientLocal,
                   Policy.History.KeepAll, Policy.DataRepresentation(use_cdrv0_representation=True))
         topic = Topic(self.dp, 'ros_discovery_info', dds.idl_type(T))
         self.raw_reader = DataReader(self.dp, topic, qos)
@@ -161,7 +172,8 @@ class Observer:
 
     def nodes(self, gid: bytes) -> dict[tuple[str, str], tuple[list[bytes], list[bytes]]] | None:
         """{(namespace, name): (reader GUIDs, writer GUIDs)} of the latest sample of a participant,
-        after checking that both decodings agree and that the bytes are Cyclone's own serialization."""
+        after checking that both decodings agree and that the bytes are Cyclone's own
+        serialization."""
         self.poll()
         if gid not in self.raw or gid not in self.typed:
             return None
@@ -191,14 +203,18 @@ def test_cdr_is_byte_identical_to_cyclone_serializer() -> None:
     def guid() -> bytes:
         return rng.integers(0, 256, 16, dtype=np.uint8).tobytes()
 
-    cases = [[], [('/', 'a', [], [])], [('/ns/deeper', 'node_with_longer_name', [guid()], [guid(), guid()]),
-                                         ('/', 'xy', [guid(), guid(), guid()], []), ('/x', 'abc', [], [guid()])]]
+    cases = [[], [('/', 'a', [], [])],
+             [('/ns/deeper', 'node_with_longer_name', [guid()], [guid(), guid()]),
+                                         ('/', 'xy', [guid(), guid(), guid()], []),
+                                         ('/x', 'abc', [], [guid()])]]
     for nodes in cases:
         gid = guid()
         ours = bytes(msgs.serialize(graph.build_message(gid, nodes), T))
         theirs = idl_pei(gid=idl_gid(data=list(gid)), node_entities_info_seq=[
-            idl_node(node_namespace=ns, node_name=name, reader_gid_seq=[idl_gid(data=list(g)) for g in r],
-                     writer_gid_seq=[idl_gid(data=list(g)) for g in w]) for ns, name, r, w in nodes]).serialize()
+            idl_node(node_namespace=ns, node_name=name,
+                     reader_gid_seq=[idl_gid(data=list(g)) for g in r],
+                     writer_gid_seq=[idl_gid(data=list(g)) for g in w])
+                     for ns, name, r, w in nodes]).serialize()
         assert ours == theirs
         assert graph.parse_message(ours) == (gid, nodes)
 
@@ -206,7 +222,8 @@ def test_cdr_is_byte_identical_to_cyclone_serializer() -> None:
 def test_two_processes_announce_their_nodes(context: Context, observer: Observer) -> None:
     suffix = uuid.uuid4().hex[:8]
     String = msgs.get_message('std_msgs/msg/String')
-    local = Node(f'local_{suffix}', namespace='/graph_test', context=context, start_parameter_services=False)
+    local = Node(f'local_{suffix}', namespace='/graph_test', context=context,
+                 start_parameter_services=False)
     local_pub = local.create_publisher(String, 'chatter', 10)
     local_sub = local.create_subscription(String, 'other', lambda m: None, 10)
     own_gid = dds.participant().guid.bytes
@@ -226,7 +243,8 @@ def test_two_processes_announce_their_nodes(context: Context, observer: Observer
                    ([local_sub.guid], [*events, local_pub.guid]), 'own sample')
 
         # the child: both nodes, each with the GUIDs of its actual endpoints
-        talker_events, listener_events = ([bytes.fromhex(ids[f'{n}_rosout']), bytes.fromhex(ids[f'{n}_events'])]
+        talker_events, listener_events = ([bytes.fromhex(ids[f'{n}_rosout']),
+                                           bytes.fromhex(ids[f'{n}_events'])]
                                           for n in ('talker', 'listener'))
         wait_equal(lambda: observer.nodes(child_gid),
                    {talker_key: ([], [*talker_events, bytes.fromhex(ids['talker_writer'])]),
@@ -248,27 +266,33 @@ def test_two_processes_announce_their_nodes(context: Context, observer: Observer
         wait_equal(lambda: observer.nodes(child_gid),
                    {listener_key: ([bytes.fromhex(ids['listener_reader'])], listener_events)},
                    'child sample without the talker')
-        wait_for(lambda: graph.NodeName(*talker_key) not in graph.node_names_and_namespaces(), 'talker gone')
+        wait_for(lambda: graph.NodeName(*talker_key) not in graph.node_names_and_namespaces(),
+                 'talker gone')
 
         # destroying an entity here republishes our sample
         local.destroy_publisher(local_pub)
-        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key), ([local_sub.guid], events),
+        wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key),
+                   ([local_sub.guid], events),
                    'own sample without the publisher')
         local_pub2 = local.create_publisher(String, 'again', 10)
         wait_equal(lambda: (observer.nodes(own_gid) or {}).get(local_key),
-                   ([local_sub.guid], [*events, local_pub2.guid]), 'own sample with the new publisher')
+                   ([local_sub.guid], [*events, local_pub2.guid]),
+                   'own sample with the new publisher')
     finally:
         assert child.close() == 0
 
     # the child's participant is gone: its nodes leave the graph
-    wait_for(lambda: graph.NodeName(*listener_key) not in graph.node_names_and_namespaces(), 'child gone')
+    wait_for(lambda: graph.NodeName(*listener_key) not in graph.node_names_and_namespaces(),
+             'child gone')
 
     local.destroy_node()
-    wait_for(lambda: (n := observer.nodes(own_gid)) is not None and local_key not in n, 'own node gone')
+    wait_for(lambda: (n := observer.nodes(own_gid)) is not None and local_key not in n,
+             'own node gone')
     assert graph.NodeName(*local_key) not in graph.node_names_and_namespaces()
 
 
-def test_endpoints_carry_rmw_cyclonedds_qos_and_user_data(context: Context, observer: Observer) -> None:
+def test_endpoints_carry_rmw_cyclonedds_qos_and_user_data(
+        context: Context, observer: Observer) -> None:
     Node(f'qos_{uuid.uuid4().hex[:8]}', context=context)  # makes sure the writer exists
     own_gid = dds.participant().guid.bytes
     publications = BuiltinDataReader(observer.dp, BuiltinTopicDcpsPublication)
@@ -277,13 +301,15 @@ def test_endpoints_carry_rmw_cyclonedds_qos_and_user_data(context: Context, obse
 
     def find(reader: BuiltinDataReader) -> Any:
         for sample in reader.take(N=1000):
-            if sample.topic_name == 'ros_discovery_info' and sample.participant_key.bytes == own_gid:
+            if (sample.topic_name == 'ros_discovery_info'
+                    and sample.participant_key.bytes == own_gid):
                 return sample
         return None
 
     writer = wait_for(lambda: find(publications), 'our ros_discovery_info writer')
     reader = wait_for(lambda: find(subscriptions), 'our ros_discovery_info reader')
-    assert writer.type_name == reader.type_name == 'rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_'
+    assert (writer.type_name == reader.type_name
+            == 'rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_')
     wq, rq = list(writer.qos), list(reader.qos)
     for q in (wq, rq):
         assert any(isinstance(p, Policy.Reliability.Reliable) for p in q)
@@ -293,7 +319,8 @@ def test_endpoints_carry_rmw_cyclonedds_qos_and_user_data(context: Context, obse
     assert Policy.History.KeepAll in rq
 
     def enclave() -> bool:
-        return any(s.key.bytes == own_gid and Policy.Userdata(graph.ENCLAVE_USER_DATA) in list(s.qos or [])
+        return any(s.key.bytes == own_gid
+                   and Policy.Userdata(graph.ENCLAVE_USER_DATA) in list(s.qos or [])
                    for s in participants.take(N=1000))
 
     wait_for(enclave, 'our participant announcing USER_DATA enclave=/;')

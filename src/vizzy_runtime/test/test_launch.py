@@ -14,21 +14,32 @@ import pytest
 import yaml
 
 from vizzy_runtime import dds
-from vizzy_runtime.launcher import (GRAPH_REMAPS, Graph, LaunchError, Launcher, NodeSpec, default_graph_file,
-                                    find_entry_point, graph_namespace, load_graph, node_command,
-                                    node_namespace)
+from vizzy_runtime.launcher import (
+    GRAPH_REMAPS,
+    Graph,
+    Launcher,
+    LaunchError,
+    NodeSpec,
+    default_graph_file,
+    find_entry_point,
+    graph_namespace,
+    load_graph,
+    node_command,
+    node_namespace,
+)
 from vizzy_runtime.testing import bound_addresses, wait_until
 
 OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
            '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states', '/clock'}
 
 
-@pytest.mark.live  # on the real tier every node runs on the real rclpy (VIZZY_RUNTIME=ros is inherited)
+# on the real tier every node runs on the real rclpy (VIZZY_RUNTIME=ros is inherited)
+@pytest.mark.live
 def test_graph_starts_and_stops_cleanly(tmp_path):
     graph = load_graph(default_graph_file())
     assert {n.name for n in graph.nodes} == {'sim', 'gaze_controller', 'foveation', 'stereo_ses',
                                              'cylinder_detector', 'mot_planner'}
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(graph, output=log)
     disc = dds.Discovery()
     readers: dict[str, dds.RawReader] = {}
@@ -122,7 +133,8 @@ def test_bad_graphs_are_clear_errors(tmp_path):
     bad.write_text('nodes:\n  - {package: p, executable: e, respawn: "yes"}\n')
     with pytest.raises(LaunchError, match='node e: respawn must be true or false'):
         load_graph(bad)
-    assert load_graph(default_graph_file()).respawns(load_graph(default_graph_file()).nodes[0]) == (True, 0.2)
+    graph = load_graph(default_graph_file())
+    assert graph.respawns(graph.nodes[0]) == (True, 0.2)
     with pytest.raises(LaunchError, match="no executable 'nope' in package 'foveation_node'"):
         find_entry_point('foveation_node', 'nope')
     with pytest.raises(LaunchError, match="package 'nope_pkg' not found"):
@@ -133,7 +145,8 @@ def test_cli_reports_errors_in_one_line():
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'run', 'nope_pkg', 'x'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
-    assert proc.stderr.strip() == "vizzy: package 'nope_pkg' not found or has no executables (run `make setup`)"
+    assert proc.stderr.strip() == ("vizzy: package 'nope_pkg' not found or has no executables "
+                                   '(run `make setup`)')
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'bag', 'record', '-d', '1'],
                           capture_output=True, text=True, timeout=60)
     assert (proc.returncode, proc.stderr.strip()) == (
@@ -167,7 +180,8 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
     the launcher, even one started with SIGINT ignored (a shell's background job)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from mixed_support import graph_subset
-    graph_file = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller', 'mot_planner'], use_sim_time=False)
+    graph_file = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller', 'mot_planner'],
+                              use_sim_time=False)
     proc = subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', str(graph_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             preexec_fn=_ignore_sigint)
@@ -192,20 +206,23 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
             proc.kill()
     text = ''.join(lines) + out
     assert proc.returncode == 0, text[-3000:]
-    said = 'user interrupted with ctrl-c' if sig == signal.SIGINT else f'stopping on {signal.Signals(sig).name}'
+    said = ('user interrupted with ctrl-c' if sig == signal.SIGINT
+            else f'stopping on {signal.Signals(sig).name}')
     assert said in text, text[-3000:]
     assert not [p for p in pids if _pid_running(p)], f'orphaned nodes {pids}:\n{text[-3000:]}'
 
 
 def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path):
     graph = Graph(nodes=[])
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(graph, output=log, grace_s=0.5)
     # like a node (node_tools.run): stacks on SIGUSR1, which the launcher sends before SIGTERM
-    stubborn = ('import faulthandler, signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+    stubborn = ('import faulthandler, signal, sys, time; signal.signal(signal.SIGINT, '
+                'signal.SIG_IGN); '
                 'faulthandler.register(signal.SIGUSR1, all_threads=True, file=sys.stdout); '
                 'print("ready", flush=True); time.sleep(120)')
-    launcher.procs['stubborn'] = subprocess.Popen([sys.executable, '-c', stubborn], stdout=subprocess.PIPE,
+    launcher.procs['stubborn'] = subprocess.Popen([sys.executable, '-c', stubborn],
+                                                  stdout=subprocess.PIPE,
                                                   text=True, start_new_session=True)
     launcher.procs['crashed'] = subprocess.Popen([sys.executable, '-c', 'raise SystemExit(3)'],
                                                  start_new_session=True)
@@ -216,7 +233,8 @@ def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path
     text = log.read()
     assert codes == {'stubborn': -signal.SIGTERM, 'crashed': 3}
     assert launcher.escalated == {'stubborn': 'SIGTERM after SIGINT'}
-    assert re.search(r'process stubborn \(pid \d+\) still running 0.5 s after SIGINT \(its threads\' '
+    assert re.search(r'process stubborn \(pid \d+\) still running 0.5 s after SIGINT \(its '
+                     r'threads\' '
                      r'stacks are above\): sending SIGTERM', text), text
     assert launcher.failed(codes) == {'crashed': 3}
     stacks = launcher.procs['stubborn'].stdout.read()
@@ -233,9 +251,10 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
     data = yaml.safe_load(path.read_text())
     data.update(respawn=True, respawn_delay=0.0)
     path.write_text(yaml.safe_dump(data))
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(load_graph(path), output=log)
-    reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState', dds.QoS(reliable=False))
+    reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState',
+                           dds.QoS(reliable=False))
     try:
         launcher.start()
         assert wait_until(lambda: bool(reader.take(8)), 60), 'gaze_controller never published'
@@ -244,7 +263,8 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
         os.killpg(first.pid, signal.SIGKILL)
         assert wait_until(lambda: first.poll() is not None, 30)
         reader.take(64)  # what the first process sent before it died
-        assert wait_until(lambda: launcher.procs['gaze_controller'] is not first and bool(reader.take(8)), 60)
+        assert wait_until(lambda: launcher.procs['gaze_controller'] is not first
+                          and bool(reader.take(8)), 60)
         back_s = time.monotonic() - killed_at
         running = launcher.poll()
     finally:
@@ -253,19 +273,22 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
     log.seek(0)
     text = log.read()
     print(f'respawn: /gaze/state flowing again {back_s:.2f} s after SIGKILL')
-    assert launcher.respawned == {'gaze_controller': 1} and running == {'gaze_controller': None}, text
+    assert (launcher.respawned == {'gaze_controller': 1}
+            and running == {'gaze_controller': None}), text
     assert 'process gaze_controller has finished (exit code -9); respawning in 0 s' in text, text
     assert re.search(r'process started with pid \[\d+\]: gaze_controller \(respawn 1\)', text), text
     assert codes == {'gaze_controller': 0}, text
 
 
 def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
-    graph = Graph(nodes=[NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'bad', respawn_max_retries=1,
+    graph = Graph(nodes=[NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'bad',
+                                  respawn_max_retries=1,
                                   arguments=['--ros-args', '-p', 'control_rate_hz:=-5.0']),
-                         NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'twice', respawn_max_retries=1,
+                         NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'twice',
+                                  respawn_max_retries=1,
                                   arguments=['--ros-args', '-p', 'use_sim_time:=false'])],
                   respawn=True, respawn_delay=0.0)
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(graph, output=log)
     try:
         launcher.start()
@@ -274,7 +297,7 @@ def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
             assert wait_until(lambda: launcher.poll()['twice'] is None, 60)
             proc = launcher.procs['twice']
             os.killpg(proc.pid, signal.SIGKILL)
-            assert wait_until(lambda: proc.poll() is not None, 30)
+            assert wait_until(lambda proc=proc: proc.poll() is not None, 30)
         launcher.wait(60)  # returns: every node has exited for good
         codes = launcher.poll()
     finally:
@@ -287,8 +310,8 @@ def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
 
 
 def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, monkeypatch):
-    """respawn_standby: a spare process with the node's modules imported waits beside the node; after
-    a SIGKILL it takes over (same pid as the spare) and /gaze/state flows from it; a new spare
+    """respawn_standby: a spare process with the node's modules imported waits beside the node;
+    after a SIGKILL it takes over (same pid as the spare) and /gaze/state flows from it; a new spare
     follows; stop() dismisses the spares (no process left). Prints the time from the kill to the
     first new message."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -298,9 +321,10 @@ def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, m
     data.update(respawn=True, respawn_delay=0.0, respawn_standby=True)
     path.write_text(yaml.safe_dump(data))
     monkeypatch.setattr(Launcher, 'STANDBY_AFTER_S', 0.0)
-    log = open(tmp_path / 'launch.log', 'w+')
+    log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(load_graph(path), output=log)
-    reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState', dds.QoS(reliable=False))
+    reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState',
+                           dds.QoS(reliable=False))
     spares = []
     try:
         launcher.start()
@@ -308,7 +332,8 @@ def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, m
         assert wait_until(lambda: 'gaze_controller' in launcher.standbys, 30)
         spare = launcher.standbys['gaze_controller']
         spares.append(spare)
-        assert wait_until(lambda: spare.pid in launcher.ready_standbys, 60), 'the standby never got ready'
+        assert wait_until(lambda: spare.pid in launcher.ready_standbys,
+                          60), 'the standby never got ready'
         first = launcher.procs['gaze_controller']
         killed_at = time.monotonic()
         os.killpg(first.pid, signal.SIGKILL)

@@ -1,6 +1,6 @@
-"""Receive sockets on 127.0.0.1 by default (loopback.py and its LD_PRELOAD shim): Cyclone alone binds
-0.0.0.0, with the shim every socket of the bundled runtime is on loopback, and VIZZY_DDS_LAN=1 turns
-the rewrite off. The whole graph's nodes are checked in test_launch.py."""
+"""Receive sockets on 127.0.0.1 by default (loopback.py and its LD_PRELOAD shim): Cyclone alone
+binds 0.0.0.0, with the shim every socket of the bundled runtime is on loopback, and VIZZY_DDS_LAN=1
+turns the rewrite off. The whole graph's nodes are checked in test_launch.py."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import pytest
 from vizzy_runtime import loopback
 
 if loopback.shim_path() is None:
-    pytest.skip('the loopback-bind shim is not built (reinstall vizzy_runtime)', allow_module_level=True)
+    pytest.skip('the loopback-bind shim is not built (reinstall vizzy_runtime)',
+                allow_module_level=True)
 
 BIND = '''
 import json, socket, sys
@@ -82,5 +83,6 @@ def test_children_get_the_shim_only_when_wanted() -> None:
     env = loopback.preload_env({'VIZZY_RUNTIME': 'bundled', 'LD_PRELOAD': '/x/libother.so'})
     assert env['LD_PRELOAD'].split() == [shim, '/x/libother.so']
     assert loopback.preload_env(dict(env))['LD_PRELOAD'] == env['LD_PRELOAD']   # not twice
-    assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'bundled', 'VIZZY_DDS_LAN': '1'})
+    assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'bundled',
+                                                     'VIZZY_DDS_LAN': '1'})
     assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'ros'})

@@ -15,8 +15,14 @@ from vizzy_runtime.bag import BagReader, bag_info
 from vizzy_runtime.testing import real_rclpy_python, repo_root
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mixed_support import (Flow, expect_clean_real_exit, graph_subset, real_launch,  # noqa: E402
-                           stop_all, wait_state)
+from mixed_support import (  # noqa: E402
+    Flow,
+    expect_clean_real_exit,
+    graph_subset,
+    real_launch,
+    stop_all,
+    wait_state,
+)
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']   # the bundled runtime's CLI (.venv)
 # what the sim and the gaze controller publish, each recorded and decoded
@@ -26,7 +32,8 @@ RECORDED = {
     '/tf': 'tf2_msgs/msg/TFMessage',
     '/tf_static': 'tf2_msgs/msg/TFMessage',                 # latched (transient local)
     '/gaze/state': 'active_vision_msgs/msg/GazeState',
-    '/vizzy/left/image_raw': 'sensor_msgs/msg/Image',       # reliable (REP 2003), 921,600 bytes each
+    # reliable (REP 2003), 921,600 bytes each
+    '/vizzy/left/image_raw': 'sensor_msgs/msg/Image',
     '/vizzy/right/image_raw': 'sensor_msgs/msg/Image',
     '/vizzy/left/camera_info': 'sensor_msgs/msg/CameraInfo',
 }
@@ -81,7 +88,8 @@ def test_bundled_bag_record_records_a_real_rclpy_graph(tmp_path):
 
 def _stamps(bag: Path, topic: str) -> set[tuple[int, int]]:
     return {(m.header.stamp.sec, m.header.stamp.nanosec)
-            for m in (msgs.deserialize(r.data, r.typename) for r in BagReader(bag).messages([topic]))}
+            for m in (msgs.deserialize(r.data, r.typename)
+                      for r in BagReader(bag).messages([topic]))}
 
 
 def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
@@ -96,7 +104,8 @@ def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
             flow.poll()
             return any(not ep.is_writer and ep.topic == '/vizzy/left/image_raw'
                        for ep in flow.disc.endpoints())
-        assert wait_state(lambda: subscribed() or not real.alive(), 120) and real.alive(), real.log()
+        assert wait_state(lambda: subscribed() or not real.alive(),
+                          120) and real.alive(), real.log()
         player = subprocess.Popen([*VIZZY, 'bag', 'play', str(bag), '-l'],
                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         flowing = wait_state(
@@ -115,9 +124,11 @@ def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
     out = player.stdout.read() if player is not None else ''
     assert alive and played is None, (
         f'foveation alive {alive}, player exit {played}: {out[-2000:]}\n{real.log()}')
-    assert flowing and heard, f'no /foveation/image from the played bag\n{out[-2000:]}\n{real.log()}'
+    assert flowing and heard, (f'no /foveation/image from the played bag\n{out[-2000:]}\n'
+                               f'{real.log()}')
     # foveated from the bag's images: it keeps their headers
-    foveated = {(m.header.stamp.sec, m.header.stamp.nanosec) for m in flow.messages['/foveation/image']}
+    foveated = {(m.header.stamp.sec, m.header.stamp.nanosec)
+                for m in flow.messages['/foveation/image']}
     assert foveated <= _stamps(bag, '/vizzy/left/image_raw'), foveated
     assert player.returncode == 0, out[-2000:]
     assert '/vizzy/left/image_raw:' in out        # the player's counts

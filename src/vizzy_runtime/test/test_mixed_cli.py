@@ -19,8 +19,14 @@ import pytest
 from vizzy_runtime.testing import real_rclpy_python
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mixed_support import (Flow, RealProcess, graph_subset, real_launch,  # noqa: E402
-                           stop_all, wait_state)
+from mixed_support import (  # noqa: E402
+    Flow,
+    RealProcess,
+    graph_subset,
+    real_launch,
+    stop_all,
+    wait_state,
+)
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']   # the bundled runtime's CLI (.venv)
 
@@ -72,7 +78,8 @@ def real_nodes(tmp_path_factory):
 
 def vizzy(*args: str, timeout: float = 60, code: int = 0) -> str:
     proc = subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=timeout)
-    assert proc.returncode == code, f'vizzy {" ".join(args)}: exit {proc.returncode}\n{proc.stderr[-2000:]}'
+    assert proc.returncode == code, (f'vizzy {" ".join(args)}: exit {proc.returncode}\n'
+                                     f'{proc.stderr[-2000:]}')
     return proc.stdout + proc.stderr if code else proc.stdout
 
 
@@ -110,9 +117,11 @@ def test_topic_hz_measures_a_real_rclpy_publisher(real_nodes):
 
 def test_param_verbs_get_set_and_are_refused_on_a_real_rclpy_node(real_nodes):
     names = vizzy('param', 'list', '/gaze_controller').split()
-    assert {'neck_share', 'pursuit_gain', 'use_sim_time', 'start_type_description_service'} <= set(names)
+    assert {'neck_share', 'pursuit_gain', 'use_sim_time',
+            'start_type_description_service'} <= set(names)
     assert vizzy('param', 'get', '/gaze_controller', 'neck_share') == 'Double value is: 0.0\n'
-    assert vizzy('param', 'set', '/gaze_controller', 'neck_share', '0.25') == 'Set parameter successful\n'
+    assert vizzy('param', 'set', '/gaze_controller', 'neck_share',
+                 '0.25') == 'Set parameter successful\n'
     assert vizzy('param', 'get', '/gaze_controller', 'neck_share') == 'Double value is: 0.25\n'
     # refused by the real rclpy itself: the descriptor's range, then the declared type
     out = vizzy('param', 'set', '/gaze_controller', 'neck_share', '3.0', code=1)
@@ -133,7 +142,8 @@ def test_param_client_queues_concurrent_calls_to_a_fast_dds_service(real_nodes, 
     executor.add_node(node)
     client = AsyncParameterClient(node, '/gaze_controller')
     assert client.wait_for_services(30)
-    asked = [['pursuit_gain'], ['neck_share', 'pursuit_gain'], ['nope'], ['pursuit_gain', 'neck_share']] * 3
+    asked = [['pursuit_gain'], ['neck_share', 'pursuit_gain'], ['nope'],
+             ['pursuit_gain', 'neck_share']] * 3
     futures = [client.get_parameters(names) for names in asked]  # all in flight at once
     for future in futures:
         executor.spin_until_future_complete(future, 20)

@@ -17,8 +17,15 @@ from vizzy_runtime.rclpy_compat import graph
 from vizzy_runtime.testing import real_rclpy_python
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mixed_support import (GRACE_S, Flow, expect_clean_real_exit, graph_subset,  # noqa: E402
-                           real_launch, stop_all, wait_state)
+from mixed_support import (  # noqa: E402
+    GRACE_S,
+    Flow,
+    expect_clean_real_exit,
+    graph_subset,
+    real_launch,
+    stop_all,
+    wait_state,
+)
 
 HEAD = ('sim', 'gaze_controller')
 PERCEPTION = ('foveation', 'stereo_ses', 'cylinder_detector', 'mot_planner')
@@ -43,7 +50,7 @@ DEADLINE_S = 150.0
 def test_whole_graph_across_vendors(tmp_path, real_side):
     real_rclpy_python()  # skips without .venv-ros
     real_nodes, bundled_nodes = (HEAD, PERCEPTION) if real_side == 'head' else (PERCEPTION, HEAD)
-    bundled_log = open(tmp_path / 'bundled.log', 'w+')
+    bundled_log = open(tmp_path / 'bundled.log', 'w+')  # noqa: SIM115 - the launcher's log
     bundled = Launcher(load_graph(graph_subset(tmp_path / 'bundled.yaml', bundled_nodes)),
                        output=bundled_log, grace_s=GRACE_S)
     flow = Flow(OUTPUTS, decode={'/gaze/state'})
@@ -82,4 +89,5 @@ def test_whole_graph_across_vendors(tmp_path, real_side):
     # both launchers stop their nodes cleanly (SIGINT; the real launcher exits 0 once they have)
     real_code = codes.pop('real')
     assert codes == {n: 0 for n in bundled_nodes}, f'unclean exit {codes}\n{logs}'
-    expect_clean_real_exit(real_code, real.log(100000), f'the real launcher ({", ".join(real_nodes)})')
+    expect_clean_real_exit(real_code, real.log(100000),
+                           f'the real launcher ({", ".join(real_nodes)})')

@@ -125,7 +125,8 @@ def test_deserialized_arrays_are_views_not_copies():
 
 def test_names():
     assert msgs.dds_type_name('sensor_msgs/msg/Image') == 'sensor_msgs::msg::dds_::Image_'
-    assert msgs.ros_type_from_dds('active_vision_msgs::msg::dds_::GazeState_') == 'active_vision_msgs/msg/GazeState'
+    assert (msgs.ros_type_from_dds('active_vision_msgs::msg::dds_::GazeState_')
+            == 'active_vision_msgs/msg/GazeState')
     assert msgs.normalize_type_name('std_msgs/String') == 'std_msgs/msg/String'
     with pytest.raises(ValueError):
         msgs.normalize_type_name('nonsense')

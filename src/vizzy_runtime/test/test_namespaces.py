@@ -8,15 +8,21 @@ from __future__ import annotations
 
 import io
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 import yaml
 
 from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph
 from vizzy_runtime.ros import (
-    Node, Parameter, SingleThreadedExecutor, message, qos_profile_sensor_data)
+    Node,
+    Parameter,
+    SingleThreadedExecutor,
+    message,
+    qos_profile_sensor_data,
+)
 from vizzy_runtime.testing import publish_until, wait_until
 
 pytestmark = pytest.mark.live
@@ -27,7 +33,8 @@ Image = message('sensor_msgs/msg/Image')
 JointState = message('sensor_msgs/msg/JointState')
 
 # Topics every node has outside its namespace, as in any ROS 2 node.
-ABSOLUTE = {'/parameter_events', '/rosout', '/diagnostics'}  # /diagnostics: absolute, as diagnostic_updater's
+# /diagnostics: absolute, as diagnostic_updater's
+ABSOLUTE = {'/parameter_events', '/rosout', '/diagnostics'}
 TF = {('sub', '/tf'), ('sub', '/tf_static')}
 # The resolved names in the default graph (docs/architecture.md), per node: what users see.
 DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {
@@ -35,7 +42,8 @@ DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {
         '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/vizzy/left/camera_info',
         '/vizzy/right/camera_info', '/vizzy/rgbd/image_raw', '/vizzy/rgbd/depth/image_raw',
         '/vizzy/rgbd/points', '/vizzy/rgbd/camera_info', '/joint_states', '/tf', '/tf_static',
-        '/clock', '/sim/ground_truth/objects', '/robot_description')} | {('sub', '/vizzy/joint_commands')},
+        '/clock', '/sim/ground_truth/objects', '/robot_description')}
+        | {('sub', '/vizzy/joint_commands')},
     'gaze_controller': TF | {('sub', '/gaze/command'), ('sub', '/joint_states'),
                              ('pub', '/gaze/state'), ('pub', '/vizzy/joint_commands')},
     'foveation': {('sub', '/vizzy/left/image_raw'), ('sub', '/vizzy/left/camera_info'),

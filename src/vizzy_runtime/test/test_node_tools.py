@@ -8,8 +8,14 @@ from typing import Any
 import pytest
 
 from vizzy_runtime import node_tools
-from vizzy_runtime.node_tools import (LatestWorker, Param, ParameterError, declare_parameters,
-                                     guarded, replace_timer)
+from vizzy_runtime.node_tools import (
+    LatestWorker,
+    Param,
+    ParameterError,
+    declare_parameters,
+    guarded,
+    replace_timer,
+)
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter, SetParametersResult

@@ -1,9 +1,11 @@
-"""Parameter services (vizzy_runtime.rclpy_compat.param_services) with rmw_cyclonedds_cpp's wire format.
+"""Parameter services (vizzy_runtime.rclpy_compat.param_services) with rmw_cyclonedds_cpp's wire
+format.
 
-The client here is written against the wire format itself, from its own DDS participant: requests are
-made by Cyclone's own serializer (struct = request header guid/seq, then the request fields), replies are
-decoded by Cyclone's own deserializer, and service availability is judged the way rmw_cyclonedds_cpp's
-rmw_service_server_is_available does (a matched request reader and reply writer with one serviceid).
+The client here is written against the wire format itself, from its own DDS participant: requests
+are made by Cyclone's own serializer (struct = request header guid/seq, then the request fields),
+replies are decoded by Cyclone's own deserializer, and service availability is judged the way
+rmw_cyclonedds_cpp's rmw_service_server_is_available does (a matched request reader and reply
+writer with one serviceid).
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ import random
 import threading
 import time
 import uuid
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 
@@ -33,8 +36,11 @@ from vizzy_runtime.rclpy_compat.context import Context  # noqa: E402
 from vizzy_runtime.rclpy_compat.exceptions import ExternalShutdownException  # noqa: E402
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor  # noqa: E402
 from vizzy_runtime.rclpy_compat.node import Node  # noqa: E402
-from vizzy_runtime.rclpy_compat.parameter import (FloatingPointRange, ParameterDescriptor,  # noqa: E402
-                                                  SetParametersResult)
+from vizzy_runtime.rclpy_compat.parameter import (  # noqa: E402
+    FloatingPointRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 
 TIMEOUT = 15.0
 ParameterValueIdl = dds.idl_type('rcl_interfaces/msg/ParameterValue')
@@ -53,8 +59,10 @@ def wait_for(predicate: Callable[[], Any], what: str, timeout: float = TIMEOUT) 
 
 
 def value(type_: int, **field: Any) -> Any:
-    fields = dict(bool_value=False, integer_value=0, double_value=0.0, string_value='', byte_array_value=[],
-                  bool_array_value=[], integer_array_value=[], double_array_value=[], string_array_value=[])
+    fields = dict(bool_value=False, integer_value=0, double_value=0.0, string_value='',
+                  byte_array_value=[],
+                  bool_array_value=[], integer_array_value=[], double_array_value=[],
+                  string_array_value=[])
     fields.update(field)
     return ParameterValueIdl(type=type_, **fields)
 
@@ -67,22 +75,27 @@ class Client:
         self.request_cls = param_services.wire_type(f'rcl_interfaces/srv/{srv}_Request')
         self.response_cls = param_services.wire_type(f'rcl_interfaces/srv/{srv}_Response')
         self.response_type = f'rcl_interfaces/srv/{srv}_Response'
-        qos = dds.QoS(reliable=True, depth=10).to_dds(f'clientid={param_services.unique_id()};'.encode())
+        qos = dds.QoS(reliable=True,
+                      depth=10).to_dds(f'clientid={param_services.unique_id()};'.encode())
         self.writer = DataWriter(dp, Topic(dp, f'rq{service}Request', self.request_cls), qos)
         self.reader = DataReader(dp, Topic(dp, f'rr{service}Reply', self.response_cls), qos)
         self.seq = 0
 
     def server_available(self) -> bool:
-        ids = {param_services.user_data_value(self.writer.get_matched_subscription_data(h).qos, 'serviceid')
+        ids = {param_services.user_data_value(self.writer.get_matched_subscription_data(h).qos,
+                                              'serviceid')
                for h in self.writer.get_matched_subscriptions()}
-        return any(param_services.user_data_value(self.reader.get_matched_publication_data(h).qos, 'serviceid')
+        return any(param_services.user_data_value(self.reader.get_matched_publication_data(h).qos,
+                                                  'serviceid')
                    in ids - {None} for h in self.reader.get_matched_publications())
 
     def server_writer_guids(self) -> set[bytes]:
-        return {self.reader.get_matched_publication_data(h).key.bytes for h in self.reader.get_matched_publications()}
+        return {self.reader.get_matched_publication_data(h).key.bytes
+                for h in self.reader.get_matched_publications()}
 
     def call(self, **fields: Any) -> Any:
-        """Send a request, return the reply decoded by Cyclone (after checking msgs decodes it the same)."""
+        """Send a request, return the reply decoded by Cyclone (after checking msgs decodes it the
+        same)."""
         wait_for(self.server_available, 'the service')
         self.seq += 1
         guid = self.writer.instance_handle % 2**64  # the binding reports it signed
@@ -93,10 +106,13 @@ class Client:
                 reply = self.response_cls.deserialize(data)
                 if info.valid_data and (reply.guid, reply.seq) == (guid, self.seq):
                     header, ours = param_services.decode(data, self.response_type)
-                    assert header == guid.to_bytes(8, 'little') + self.seq.to_bytes(8, 'little', signed=True)
-                    own = reply.serialize()  # Cyclone's own bytes for the wire struct, padded to 4 bytes
+                    assert header == (guid.to_bytes(8, 'little')
+                                      + self.seq.to_bytes(8, 'little', signed=True))
+                    # Cyclone's own bytes for the wire struct, padded to 4 bytes
+                    own = reply.serialize()
                     assert own + b'\0' * (-len(own) % 4) == data  # as Cyclone's writer sends them
-                    assert param_services.encode(header, ours, self.response_type) == data  # msgs agrees
+                    # msgs agrees
+                    assert param_services.encode(header, ours, self.response_type) == data
                     return reply
             time.sleep(0.01)
         raise AssertionError(f'no reply from {self.reader.topic.name}')
@@ -108,7 +124,8 @@ def served(context: Context):
     suffix = uuid.uuid4().hex[:8]
     node = Node(f'params_{suffix}', namespace='/ptest', context=context)
     node.declare_parameter('gain', 1.5, ParameterDescriptor(
-        description='loop gain', floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)]))
+        description='loop gain',
+        floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)]))
     node.declare_parameter('count', 3)
     node.declare_parameter('label', 'left')
     node.declare_parameter('nested.a.b', 7)
@@ -133,10 +150,12 @@ def served(context: Context):
 
     thread = threading.Thread(target=spin, daemon=True)
     thread.start()
-    dds.participant()  # the domain (loopback configuration) exists before the client participant joins
+    # the domain (loopback configuration) exists before the client participant joins
+    dds.participant()
     dp = DomainParticipant(dds.domain_id())
     fqn = node.get_fully_qualified_name()
-    clients = {name: Client(dp, f'{fqn}/{name}', srv) for name, srv in param_services.SERVICES.items()}
+    clients = {name: Client(dp, f'{fqn}/{name}', srv)
+               for name, srv in param_services.SERVICES.items()}
     yield node, clients, callback_threads, spinning
     context.try_shutdown()
     thread.join(TIMEOUT)
@@ -145,8 +164,10 @@ def served(context: Context):
 def test_srv_types_and_request_bytes() -> None:
     param_services.register_types()
     reg = msgs.registry()
-    assert [n for n, _ in reg.fields('rcl_interfaces/srv/ListParameters_Request')] == ['prefixes', 'depth']
-    assert reg.constants('rcl_interfaces/srv/ListParameters_Request') == [('DEPTH_RECURSIVE', 'uint64', 0)]
+    assert ([n for n, _ in reg.fields('rcl_interfaces/srv/ListParameters_Request')]
+            == ['prefixes', 'depth'])
+    assert (reg.constants('rcl_interfaces/srv/ListParameters_Request')
+            == [('DEPTH_RECURSIVE', 'uint64', 0)])
     assert msgs.dds_type_name('rcl_interfaces/srv/GetParameters_Request') == \
         'rcl_interfaces::srv::dds_::GetParameters_Request_'
     # encode(): encapsulation + header + fields, byte for byte what Cyclone makes of the wire struct
@@ -178,16 +199,19 @@ def test_parameter_services_answer_like_rclpy(served: Any) -> None:
     reply = clients['get_parameters'].call(names=['gain', 'count', 'label'])
     assert [(v.type, v.double_value, v.integer_value, v.string_value) for v in reply.values] == \
         [(3, 1.5, 0, ''), (2, 0.0, 3, ''), (4, 0.0, 0, 'left')]
-    assert clients['get_parameters'].call(names=['gain', 'missing']).values == []  # rclpy: all or none
+    # rclpy: all or none
+    assert clients['get_parameters'].call(names=['gain', 'missing']).values == []
 
-    assert list(clients['get_parameter_types'].call(names=['gain', 'count', 'label']).types) == [3, 2, 4]
+    types = clients['get_parameter_types'].call(names=['gain', 'count', 'label']).types
+    assert list(types) == [3, 2, 4]
     assert list(clients['get_parameter_types'].call(names=['missing']).types) == []
 
     result = clients['list_parameters'].call(prefixes=[], depth=0).result
     assert {'gain', 'count', 'label', 'nested.a.b', 'use_sim_time'} <= set(result.names)
     assert 'nested.a' in result.prefixes
     assert clients['list_parameters'].call(prefixes=['nested'], depth=1).result.names == []
-    assert clients['list_parameters'].call(prefixes=['nested'], depth=2).result.names == ['nested.a.b']
+    assert clients['list_parameters'].call(prefixes=['nested'],
+                                           depth=2).result.names == ['nested.a.b']
 
     [descriptor] = clients['describe_parameters'].call(names=['gain']).descriptors
     assert (descriptor.name, descriptor.type, descriptor.description) == ('gain', 3, 'loop gain')
@@ -228,5 +252,5 @@ def test_services_are_announced_and_leave_with_the_node(served: Any) -> None:
     assert len(ours.reader_gids) == 6  # the request readers (no subscriptions on this node)
     node.destroy_node()
     for client in clients.values():
-        wait_for(lambda: not client.server_available(), 'the service gone')
+        wait_for(lambda client=client: not client.server_available(), 'the service gone')
     assert node.get_name() not in {n.name for n in graph.snapshot() if n.local}

@@ -11,8 +11,12 @@ import pytest
 from vizzy_runtime.rclpy_compat.exceptions import ExternalShutdownException
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import (FloatingPointRange, Parameter, ParameterDescriptor,
-                                                  SetParametersResult)
+from vizzy_runtime.rclpy_compat.parameter import (
+    FloatingPointRange,
+    Parameter,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from vizzy_runtime.rclpy_compat.parameter_client import AsyncParameterClient
 
 TIMEOUT = 20.0
@@ -23,7 +27,8 @@ def remote(context):
     """A node with a ranged and a validated parameter, spun in its own thread."""
     node = Node(f'remote_{uuid.uuid4().hex[:8]}', namespace='/pc', context=context)
     node.declare_parameter('gain', 1.5, ParameterDescriptor(
-        description='loop gain', floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)]))
+        description='loop gain',
+        floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)]))
     node.declare_parameter('label', 'left')
     node.add_on_set_parameters_callback(lambda params: SetParametersResult(
         successful=all(p.name != 'label' or p.value in ('left', 'right') for p in params),
@@ -57,17 +62,22 @@ def test_get_set_refuse_list_describe(context, remote):
     executor.add_node(caller)
     client = AsyncParameterClient(caller, remote.get_fully_qualified_name())
     assert client.wait_for_services(TIMEOUT)
-    assert [v.double_value for v in result(executor, client.get_parameters(['gain'])).values] == [1.5]
-    assert result(executor, client.set_parameters([Parameter('gain', value=2.5)])).results[0].successful
+    assert [v.double_value
+            for v in result(executor, client.get_parameters(['gain'])).values] == [1.5]
+    assert result(executor,
+                  client.set_parameters([Parameter('gain', value=2.5)])).results[0].successful
     assert remote.get_parameter('gain').value == 2.5
     refused = result(executor, client.set_parameters([Parameter('gain', value=11.0)])).results[0]
     assert not refused.successful and 'out of range' in refused.reason.lower()
     refused = result(executor, client.set_parameters([Parameter('label', value='up')])).results[0]
     assert (refused.successful, refused.reason) == (False, 'label must be left or right')
-    assert remote.get_parameter('gain').value == 2.5 and remote.get_parameter('label').value == 'left'
-    assert {'gain', 'label', 'use_sim_time'} <= set(result(executor, client.list_parameters()).result.names)
+    assert remote.get_parameter('gain').value == 2.5
+    assert remote.get_parameter('label').value == 'left'
+    assert {'gain', 'label',
+            'use_sim_time'} <= set(result(executor, client.list_parameters()).result.names)
     descriptor = result(executor, client.describe_parameters(['gain'])).descriptors[0]
-    assert (descriptor.description, descriptor.floating_point_range[0].to_value) == ('loop gain', 10.0)
+    assert ((descriptor.description, descriptor.floating_point_range[0].to_value)
+            == ('loop gain', 10.0))
 
 
 def test_two_clients_get_their_own_replies(context, remote):
@@ -83,7 +93,8 @@ def test_two_clients_get_their_own_replies(context, remote):
     replies = [result(executor, f) for f in futures]
     assert [len(r.values) for r in replies] == [len(names) for _, names in asked]
     assert all(r.values[-1].double_value == 1.5 for r in replies)
-    assert all(r.values[0].string_value == 'left' for r, (_, names) in zip(replies, asked) if len(names) == 2)
+    assert all(r.values[0].string_value == 'left'
+               for r, (_, names) in zip(replies, asked, strict=True) if len(names) == 2)
 
 
 def test_a_missing_node_fails_the_call(context):

@@ -1,12 +1,18 @@
-"""Parameters as rclpy has them: descriptors, ranges, callbacks, overrides from -p and params files."""
+"""Parameters as rclpy has them: descriptors, ranges, callbacks, overrides from -p and params
+files."""
 
 import pytest
 
 from vizzy_runtime.rclpy_compat import arguments
 from vizzy_runtime.rclpy_compat import exceptions as exc
 from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.parameter import (FloatingPointRange, IntegerRange, Parameter,
-                                                  ParameterDescriptor, SetParametersResult)
+from vizzy_runtime.rclpy_compat.parameter import (
+    FloatingPointRange,
+    IntegerRange,
+    Parameter,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 
 PARAMS_YAML = """
 /**:
@@ -36,7 +42,8 @@ def test_params_file_precedence_and_nesting(context, tmp_path):
                 cli_args=['--ros-args', '--params-file', str(f), '-p', 'sigma:=80.5'])
     assert node.declare_parameter('levels', 3).value == 6          # its fully qualified entry
     assert node.declare_parameter('sigma', 1.0).value == 80.5      # -p after the file wins
-    assert node.declare_parameter('nested.f0', 1.0).value == 30.0  # int in YAML for a double: coerced
+    # int in YAML for a double: coerced
+    assert node.declare_parameter('nested.f0', 1.0).value == 30.0
     assert node.declare_parameter('shared', 0).value == 1          # /** applies to every node
     assert node.declare_parameter('untouched', 'x').value == 'x'  # `fovea:` is /fovea (rcl)
     root = Node('fovea', context=context,
@@ -66,7 +73,8 @@ def test_descriptor_ranges_types_and_read_only(context):
         integer_range=[IntegerRange(from_value=1, to_value=7, step=1)]))
     node.declare_parameter('frame', 'base_link', ParameterDescriptor(read_only=True))
     ok, too_big, wrong_type, ro, bad_int = node.set_parameters([
-        Parameter('rate', value=20.0), Parameter('rate', value=31.0), Parameter('rate', value='fast'),
+        Parameter('rate', value=20.0), Parameter('rate', value=31.0),
+        Parameter('rate', value='fast'),
         Parameter('frame', value='ego'), Parameter('levels', value=8)])
     assert ok.successful and node.get_parameter('rate').value == 20.0
     # rclpy's reasons, word for word
@@ -80,8 +88,11 @@ def test_descriptor_ranges_types_and_read_only(context):
     assert node.set_parameters([Parameter('rate', value=30.0 + 1e-5)])[0].successful
     assert not node.set_parameters([Parameter('rate', value=float('nan'))])[0].successful
     with pytest.raises(exc.InvalidParameterValueException):
-        Node('ranged2', context=context, cli_args=['--ros-args', '-p', 'rate:=99.0']).declare_parameter(
-            'rate', 10.0, ParameterDescriptor(floating_point_range=[FloatingPointRange(from_value=1.0, to_value=30.0)]))
+        Node('ranged2', context=context,
+             cli_args=['--ros-args', '-p', 'rate:=99.0']).declare_parameter(
+            'rate', 10.0,
+            ParameterDescriptor(
+                floating_point_range=[FloatingPointRange(from_value=1.0, to_value=30.0)]))
 
 
 def test_set_callbacks_can_reject_and_see_declarations(context):
@@ -91,7 +102,8 @@ def test_set_callbacks_can_reject_and_see_declarations(context):
     def validate(params):
         seen.extend(p.name for p in params)
         bad = [p.name for p in params if p.name == 'fovea_sigma' and p.value <= 0]
-        return SetParametersResult(successful=not bad, reason='fovea_sigma must be > 0' if bad else '')
+        return SetParametersResult(successful=not bad,
+                                   reason='fovea_sigma must be > 0' if bad else '')
 
     node.add_on_set_parameters_callback(validate)
     node.declare_parameter('fovea_sigma', 100.0)

@@ -11,8 +11,14 @@ import pytest
 
 from vizzy_runtime.node_tools import Param, ParameterError, declare_parameters, startup_error_line
 from vizzy_runtime.ros import (
-    InvalidParameterTypeException, InvalidParameterValueException, Node, Parameter, QoSProfile,
-    SingleThreadedExecutor, message)
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    Node,
+    Parameter,
+    QoSProfile,
+    SingleThreadedExecutor,
+    message,
+)
 from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python, repo_root, wait_until
 
 ParameterEvent = message('rcl_interfaces/msg/ParameterEvent')

@@ -14,8 +14,14 @@ import uuid
 import pytest
 
 from vizzy_runtime.ros import (
-    DurabilityPolicy, HistoryPolicy, Node, QoSProfile, ReliabilityPolicy, SingleThreadedExecutor,
-    message)
+    DurabilityPolicy,
+    HistoryPolicy,
+    Node,
+    QoSProfile,
+    ReliabilityPolicy,
+    SingleThreadedExecutor,
+    message,
+)
 from vizzy_runtime.testing import wait_until
 
 pytestmark = pytest.mark.live

@@ -1,4 +1,5 @@
-"""The bundled rclpy on Cyclone DDS: round trips across processes, QoS matching, remapping, bad input."""
+"""The bundled rclpy on Cyclone DDS: round trips across processes, QoS matching, remapping, bad
+input."""
 
 import os
 import subprocess
@@ -12,8 +13,12 @@ from vizzy_runtime import dds, msgs
 from vizzy_runtime.convert import image_to_numpy, numpy_to_image
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
-from vizzy_runtime.rclpy_compat.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy, qos_profile_sensor_data
-
+from vizzy_runtime.rclpy_compat.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
 from vizzy_runtime.testing import wait_until
 
 Image = msgs.get_message('sensor_msgs/msg/Image')
@@ -23,7 +28,8 @@ HERE = Path(__file__).parent
 
 @pytest.fixture
 def relay():
-    env = {**os.environ, 'PYTHONPATH': os.pathsep.join([str(HERE), os.environ.get('PYTHONPATH', '')])}
+    env = {**os.environ,
+           'PYTHONPATH': os.pathsep.join([str(HERE), os.environ.get('PYTHONPATH', '')])}
     proc = subprocess.Popen([sys.executable, str(HERE / 'relay_peer.py')], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     yield proc
@@ -39,7 +45,8 @@ def test_image_round_trip_across_processes(context, relay):
     ex = SingleThreadedExecutor(context=context)
     ex.add_node(node)
     # the relay has a reader on /relay_in and a writer on /relay_out: wait for both matches
-    assert wait_until(lambda: pub.get_subscription_count() == 1 and node.subscriptions[0].get_publisher_count() == 1, 20)
+    assert wait_until(lambda: pub.get_subscription_count() == 1
+                      and node.subscriptions[0].get_publisher_count() == 1, 20)
     rng = np.random.default_rng(0)
     frames = [rng.integers(0, 255, (480, 640, 3), dtype=np.uint8) for _ in range(3)]
     for i, frame in enumerate(frames):
@@ -48,7 +55,7 @@ def test_image_round_trip_across_processes(context, relay):
         msg.header.stamp.sec = i
         pub.publish(msg)
     assert wait_until(lambda: len(received) == 3, 10, spin=ex)
-    for i, (frame, msg) in enumerate(zip(frames, received)):
+    for i, (frame, msg) in enumerate(zip(frames, received, strict=True)):
         assert msg.header.stamp.sec == i and msg.header.frame_id == 'left_camera_optical_frame'
         np.testing.assert_array_equal(image_to_numpy(msg), frame)
     assert relay.poll() is None
@@ -57,8 +64,10 @@ def test_image_round_trip_across_processes(context, relay):
 def test_reliable_subscriber_does_not_match_best_effort_publisher(context):
     node = Node('qos_tester', context=context)
     best_effort_pub = node.create_publisher(String, '/qos_topic', qos_profile_sensor_data)
-    reliable_sub = node.create_subscription(String, '/qos_topic', lambda m: None, QoSProfile(depth=10))
-    best_effort_sub = node.create_subscription(String, '/qos_topic', lambda m: None, qos_profile_sensor_data)
+    reliable_sub = node.create_subscription(String, '/qos_topic', lambda m: None,
+                                            QoSProfile(depth=10))
+    best_effort_sub = node.create_subscription(String, '/qos_topic', lambda m: None,
+                                               qos_profile_sensor_data)
     assert wait_until(lambda: best_effort_sub.get_publisher_count() == 1)
     assert best_effort_pub.get_subscription_count() == 1  # only the best-effort reader
     assert reliable_sub.get_publisher_count() == 0
@@ -100,7 +109,8 @@ def test_malformed_sample_is_logged_and_node_keeps_running(context, capfd):
     assert wait_until(lambda: writer.matched_count() == 1)
     # Cyclone itself drops structurally broken CDR; what reaches us can still be undecodable
     # (a frame_id that is not UTF-8), and must not stop the node.
-    bad = bytes(msgs.serialize(Image(header=msgs.get_message('std_msgs/msg/Header')(frame_id='ab'))))
+    Header = msgs.get_message('std_msgs/msg/Header')
+    bad = bytes(msgs.serialize(Image(header=Header(frame_id='ab'))))
     writer.write(bad.replace(b'ab\x00', b'\xff\xfe\x00'))
     good = Image(height=1, width=1, encoding='mono8', step=1, data=np.array([7], np.uint8))
     writer.write(msgs.serialize(good))
@@ -149,7 +159,7 @@ def test_timer_and_sim_time(context):
         msg.clock.sec, msg.clock.nanosec = divmod(t * 100_000_000, 1_000_000_000)
         clock_pub.publish(msg)
         want = t * 100_000_000
-        assert wait_until(lambda: node.get_clock().now().nanoseconds == want, 5, spin=ex)
+        assert wait_until(lambda want=want: node.get_clock().now().nanoseconds == want, 5, spin=ex)
     ex.spin_once(0.05)
     # the node's clock follows /clock and its timer fires on sim time: 0.5 s period over 3 s
     assert node.get_clock().now().nanoseconds == 3_000_000_000
@@ -164,9 +174,11 @@ def test_peer_with_another_type_on_our_topic_is_reported(context, capfd):
     ex = SingleThreadedExecutor(context=context)
     ex.add_node(node)
     seen = []
-    assert wait_until(lambda: seen.append(capfd.readouterr().err) or any('/mixed' in e for e in seen), 10, spin=ex)
+    assert wait_until(lambda: seen.append(capfd.readouterr().err)
+                      or any('/mixed' in e for e in seen), 10, spin=ex)
     line = next(e for e in seen if '/mixed' in e)
-    assert 'a peer publishes it as std_msgs/msg/String, this node uses sensor_msgs/msg/Image' in line
+    assert ('a peer publishes it as std_msgs/msg/String, this node uses sensor_msgs/msg/Image'
+            in line)
     assert writer.matched_count() == 0
 
 

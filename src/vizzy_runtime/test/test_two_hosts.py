@@ -16,7 +16,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -110,9 +109,11 @@ def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):
     perception = graph_subset(tmp_path / 'b.yaml', ['foveation'])
     launch = ['-m', 'vizzy_runtime.cli', 'launch', '--duration', '300']
     # output to files: a pipe nobody reads fills up and blocks the launcher and its nodes
-    logs = {name: open(tmp_path / f'{name}.log', 'w+') for name in ('a', 'b')}
+    logs = {name: open(tmp_path / f'{name}.log', 'w+')  # noqa: SIM115 - the launchers' output
+            for name in ('a', 'b')}
     a = _in(host_a, [*launch, str(sim)], lan=True, stdout=logs['a'], stderr=subprocess.STDOUT)
-    b = _in(host_b, [*launch, str(perception)], lan=True, stdout=logs['b'], stderr=subprocess.STDOUT)
+    b = _in(host_b, [*launch, str(perception)], lan=True, stdout=logs['b'],
+            stderr=subprocess.STDOUT)
     try:
         seen = _in(host_b, ['-c', PROBE, '120'], lan=True, stdout=subprocess.PIPE, text=True)
         counts = json.loads(seen.communicate(timeout=180)[0])

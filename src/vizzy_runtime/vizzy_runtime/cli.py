@@ -1,12 +1,14 @@
 """`vizzy`: the ros2 verbs people know, for machines without ROS 2.
 
     vizzy run <package> <executable> [args] [--ros-args ...]
-    vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S] [--view-port P | --no-view]
+    vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S]
+                 [--view-port P | --no-view]
     vizzy view [--port 8765] [--host ADDR]            (Foxglove live view of the running graph)
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
     vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
-    vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag> | reindex <bag>
+    vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag>
+              | reindex <bag>
 
 Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
 the same topics. Errors are one line naming what and where; the exit code is non-zero.
@@ -22,10 +24,10 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
-
 
 DEFAULT_VIEW_PORT = 8765   # Foxglove's default (live_view.DEFAULT_PORT; not imported: it is slow)
 
@@ -68,7 +70,8 @@ def _standby_released() -> bool:
     `go` on stdin, then run it (the launcher's respawn_standby). False: stdin ended or a signal
     came first (the launcher dismissed this spare)."""
     from .launcher import STANDBY_READY
-    previous = {sig: signal.signal(sig, lambda *_: sys.exit(0)) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, lambda *_: sys.exit(0))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         print(STANDBY_READY, flush=True)
         line = sys.stdin.readline()
@@ -101,14 +104,16 @@ def cmd_view(ns: argparse.Namespace) -> int:
     print(f'serving the graph to Foxglove on {view.url} (Open connection > Foxglove WebSocket; '
           'layout: src/vizzy_runtime/config/foxglove_layout.json); Ctrl-C to stop', flush=True)
     done = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: done.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, lambda *_: done.set())
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         done.wait(ns.duration)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         view.stop()
-    served = ', '.join(f'{t} {n}' for t, n in sorted(view.sent.items())) or 'nothing (no subscriber)'
+    served = ', '.join(f'{t} {n}'
+                       for t, n in sorted(view.sent.items())) or 'nothing (no subscriber)'
     print(f'served: {served}', flush=True)
     return 0
 
@@ -124,7 +129,8 @@ def _wait_for_type(topic: str, typename: str | None, timeout: float) -> tuple[st
         if writers or (typename and time.monotonic() > deadline):
             break
         if time.monotonic() > deadline:
-            raise TimeoutError(f'no publisher on {topic} after {timeout:g} s (give --type to wait anyway)')
+            raise TimeoutError(f'no publisher on {topic} after {timeout:g} s (give --type to wait '
+                               'anyway)')
         time.sleep(0.05)
     types = {ep.typename for ep in writers}
     if typename is None:
@@ -153,8 +159,13 @@ class _Peers:
     ENDPOINT_GRACE_S = 2.0
 
     def __init__(self) -> None:
-        from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsParticipant,
-                                        BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription)
+        from cyclonedds.builtin import (
+            BuiltinDataReader,
+            BuiltinTopicDcpsParticipant,
+            BuiltinTopicDcpsPublication,
+            BuiltinTopicDcpsSubscription,
+        )
+
         from . import dds
         dp = dds.participant()
         self._self = dp.guid.bytes
@@ -175,7 +186,8 @@ class _Peers:
                     self.first_seen.pop(key, None)
                 elif key != self._self and b'enclave=' in _user_data(s.qos):
                     self.first_seen.setdefault(key, time.monotonic())
-            for reader, seen in zip(self._endpoints, (self.with_writers, self.with_readers)):
+            for reader, seen in zip(self._endpoints, (self.with_writers, self.with_readers),
+                                    strict=True):
                 for s in reader.take(N=1000):
                     if s.sample_info.instance_state == InstanceState.Alive:
                         seen.add(s.participant_key.bytes)
@@ -237,13 +249,15 @@ def cmd_topic_list(ns: argparse.Namespace) -> int:
 def to_yaml(msg: Any, indent: int = 0, max_array: int = 16) -> str:
     """`ros2 topic echo`-style text; long arrays are cut to their first elements."""
     pad = '  ' * indent
-    fields = list(msg.get_fields_and_field_types()) if hasattr(msg, 'get_fields_and_field_types') else []
+    fields = (list(msg.get_fields_and_field_types())
+              if hasattr(msg, 'get_fields_and_field_types') else [])
     lines = []
     for name in fields:
         value = getattr(msg, name)
         if hasattr(type(value), '__msgtype__'):
             lines.append(f'{pad}{name}:\n{to_yaml(value, indent + 1, max_array)}')
-        elif isinstance(value, (list, np.ndarray)) and len(value) and hasattr(type(value[0]), '__msgtype__'):
+        elif (isinstance(value, (list, np.ndarray)) and len(value)
+              and hasattr(type(value[0]), '__msgtype__')):
             lines.append(f'{pad}{name}:')
             for item in value[:max_array]:
                 body = to_yaml(item, indent + 2, max_array).lstrip()
@@ -256,13 +270,15 @@ def to_yaml(msg: Any, indent: int = 0, max_array: int = 16) -> str:
             more = f', ... ({len(value)} items)' if len(value) > max_array else ''
             lines.append(f'{pad}{name}: [{text}{more}]')
         else:
-            lines.append(f'{pad}{name}: {value!r}' if isinstance(value, str) else f'{pad}{name}: {value}')
+            lines.append(f'{pad}{name}: {value!r}' if isinstance(value, str)
+                         else f'{pad}{name}: {value}')
     return '\n'.join(lines)
 
 
 def cmd_topic_echo(ns: argparse.Namespace) -> int:
     from . import dds, msgs
-    typename, qos = _wait_for_type(ns.topic, ns.type and msgs.normalize_type_name(ns.type), ns.timeout)
+    typename, qos = _wait_for_type(ns.topic, ns.type and msgs.normalize_type_name(ns.type),
+                                   ns.timeout)
     reader = dds.RawReader(ns.topic, typename, qos)
     shown = 0
     while ns.count is None or shown < ns.count:
@@ -274,7 +290,8 @@ def cmd_topic_echo(ns: argparse.Namespace) -> int:
             try:
                 print(to_yaml(msgs.deserialize(raw, typename)) + '\n---', flush=True)
             except Exception as err:  # noqa: BLE001 - report and keep echoing
-                print(f'vizzy: {ns.topic}: cannot decode a {typename} sample: {err}', file=sys.stderr)
+                print(f'vizzy: {ns.topic}: cannot decode a {typename} sample: {err}',
+                      file=sys.stderr)
             shown += 1
             if ns.count is not None and shown >= ns.count:
                 break
@@ -285,7 +302,8 @@ def rate_stats(stamps: Sequence[float]) -> dict[str, float]:
     """ros2 topic hz's figures from receive times (s)."""
     gaps = np.diff(np.asarray(stamps, dtype=float))
     if gaps.size == 0:
-        return {'rate': 0.0, 'min': math.nan, 'max': math.nan, 'std_dev': math.nan, 'window': len(stamps)}
+        return {'rate': 0.0, 'min': math.nan, 'max': math.nan, 'std_dev': math.nan,
+                'window': len(stamps)}
     return {'rate': float(1.0 / gaps.mean()), 'min': float(gaps.min()), 'max': float(gaps.max()),
             'std_dev': float(gaps.std()), 'window': int(gaps.size + 1)}
 
@@ -383,7 +401,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=cmd_run)
 
     la = sub.add_parser('launch', help='start the graph, one process per node (like ros2 launch)')
-    la.add_argument('graph', nargs='?', help='graph YAML (default: vizzy_runtime config/graph.yaml)')
+    la.add_argument('graph', nargs='?',
+                    help='graph YAML (default: vizzy_runtime config/graph.yaml)')
     la.add_argument('--duration', type=float, help='stop after this many seconds')
     la.add_argument('--namespace', default='',
                     help='put the whole graph in this namespace (e.g. /head2), like ros2 launch '
@@ -392,19 +411,23 @@ def build_parser() -> argparse.ArgumentParser:
                     help='on stop, seconds from SIGINT to SIGTERM for nodes still running '
                          '(default 5; like ros2 launch sigterm_timeout)')
     la.add_argument('--view-port', type=int, default=DEFAULT_VIEW_PORT, metavar='PORT',
-                    help=f'serve the graph to Foxglove on ws://127.0.0.1:PORT (default {DEFAULT_VIEW_PORT})')
+                    help='serve the graph to Foxglove on ws://127.0.0.1:PORT (default '
+                         f'{DEFAULT_VIEW_PORT})')
     la.add_argument('--no-view', action='store_true', help='no Foxglove live view')
     la.set_defaults(func=cmd_launch)
 
-    view = sub.add_parser('view', help='serve the running graph (or a bag being played) to Foxglove')
+    view = sub.add_parser('view',
+                          help='serve the running graph (or a bag being played) to Foxglove')
     view.add_argument('--port', type=int, default=DEFAULT_VIEW_PORT,
                       help=f'WebSocket port (default {DEFAULT_VIEW_PORT}; 0: any free one)')
     view.add_argument('--host', default=None,
-                      help='address to listen on (default 127.0.0.1; every interface with VIZZY_DDS_LAN=1)')
+                      help='address to listen on (default 127.0.0.1; every interface with '
+                           'VIZZY_DDS_LAN=1)')
     view.add_argument('--duration', type=float, help='stop after this many seconds')
     view.set_defaults(func=cmd_view)
 
-    topic = sub.add_parser('topic', help='inspect topics').add_subparsers(dest='topic_verb', required=True)
+    topic = sub.add_parser('topic', help='inspect topics').add_subparsers(
+        dest='topic_verb', required=True)
     tl = topic.add_parser('list')
     tl.add_argument('-t', '--show-types', action='store_true')
     tl.add_argument('--wait', type=float, default=1.0,
@@ -415,7 +438,8 @@ def build_parser() -> argparse.ArgumentParser:
         t = topic.add_parser(name)
         t.add_argument('topic')
         t.add_argument('--type', help='message type, if no publisher is up yet')
-        t.add_argument('--timeout', type=float, default=10.0, help='seconds to wait for a publisher')
+        t.add_argument('--timeout', type=float, default=10.0,
+                       help='seconds to wait for a publisher')
         if name == 'echo':
             t.add_argument('-n', '--count', type=int, help='exit after this many messages')
         else:
@@ -423,7 +447,8 @@ def build_parser() -> argparse.ArgumentParser:
             t.add_argument('--duration', type=float, help='exit after this many seconds')
         t.set_defaults(func=func)
 
-    node = sub.add_parser('node', help='inspect nodes').add_subparsers(dest='node_verb', required=True)
+    node = sub.add_parser('node', help='inspect nodes').add_subparsers(
+        dest='node_verb', required=True)
     nl = node.add_parser('list')
     nl.add_argument('--wait', type=float, default=1.0,
                     help='seconds to listen for discovery at least; then until every ROS 2 process '
@@ -433,7 +458,8 @@ def build_parser() -> argparse.ArgumentParser:
     from . import param_cli
     param_cli.add_parser(sub)
 
-    bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(dest='bag_verb', required=True)
+    bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(
+        dest='bag_verb', required=True)
     rec = bag.add_parser('record')
     rec.add_argument('topics', nargs='*')
     rec.add_argument('-a', '--all', action='store_true')

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import array
 import sys
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -31,11 +32,13 @@ class ConversionError(ValueError):
 
 
 def _byte_view(data: Any) -> np.ndarray:
-    return np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.view(np.uint8)
+    return (np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray)
+            else data.view(np.uint8))
 
 
 def _set_bytes(msg: Any, field: str, buf: np.ndarray) -> None:
-    """Assign a uint8 buffer the way each runtime's generated setter accepts without a Python loop."""
+    """Assign a uint8 buffer the way each runtime's generated setter accepts without a Python
+    loop."""
     if USING_REAL_ROS:
         setattr(msg, field, array.array('B', buf.tobytes()))
     else:
@@ -71,7 +74,8 @@ TOO_LARGE = 'too large'
 SHORT_STEP = 'step shorter than a row'
 SHORT_DATA = 'size inconsistent with data'
 UNCONVERTIBLE = 'unconvertible image'
-IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, TOO_LARGE, SHORT_STEP, SHORT_DATA, UNCONVERTIBLE)
+IMAGE_REASONS = (UNSUPPORTED_ENCODING, EMPTY_IMAGE, TOO_LARGE, SHORT_STEP, SHORT_DATA,
+                 UNCONVERTIBLE)
 
 
 def image_refusal(msg: Any, bytes_per_pixel: dict[str, int], *,
@@ -130,11 +134,13 @@ def pointcloud2_dtype(msg: Any) -> np.dtype:
     for f in msg.fields:
         if f.datatype not in _POINTFIELD_DTYPES:
             raise ConversionError(f'PointField {f.name!r} has unknown datatype {f.datatype}')
-        base = np.dtype(_POINTFIELD_DTYPES[f.datatype]).newbyteorder('>' if msg.is_bigendian else '<')
+        base = np.dtype(_POINTFIELD_DTYPES[f.datatype]).newbyteorder(
+            '>' if msg.is_bigendian else '<')
         names.append(f.name)
         formats.append(base if f.count <= 1 else (base, (f.count,)))
         offsets.append(f.offset)
-    return np.dtype({'names': names, 'formats': formats, 'offsets': offsets, 'itemsize': msg.point_step})
+    return np.dtype({'names': names, 'formats': formats, 'offsets': offsets,
+                     'itemsize': msg.point_step})
 
 
 def pointcloud2_to_array(msg: Any) -> np.ndarray:
@@ -147,13 +153,16 @@ def pointcloud2_to_array(msg: Any) -> np.ndarray:
                               f'{msg.width}x{msg.height} points of {msg.point_step} bytes')
     if n == 0:
         return np.zeros((msg.height, msg.width), dtype=dtype)
-    rows = raw[:msg.row_step * msg.height].reshape(msg.height, msg.row_step)[:, :msg.width * msg.point_step]
+    rows = raw[:msg.row_step * msg.height].reshape(msg.height,
+                                                   msg.row_step)[:, :msg.width * msg.point_step]
     return np.ascontiguousarray(rows).view(dtype).reshape(msg.height, msg.width)
 
 
-def array_to_pointcloud2(points: np.ndarray, header: Any = None, *, is_dense: bool | None = None) -> Any:
+def array_to_pointcloud2(points: np.ndarray, header: Any = None, *,
+                         is_dense: bool | None = None) -> Any:
     """PointCloud2 from a structured array (1-D: unorganized, 2-D: organized height x width)."""
-    if points.dtype.names is None:
+    dtype_fields = points.dtype.fields
+    if points.dtype.names is None or dtype_fields is None:  # (both None together)
         raise ConversionError('array_to_pointcloud2 needs a structured array (fields x, y, z, ...)')
     grid = points if points.ndim == 2 else points.reshape(1, -1)
     PointField = message('sensor_msgs/msg/PointField')
@@ -162,7 +171,7 @@ def array_to_pointcloud2(points: np.ndarray, header: Any = None, *, is_dense: bo
         msg.header = header
     fields = []
     for name in points.dtype.names:
-        sub, offset = points.dtype.fields[name][:2]
+        sub, offset = dtype_fields[name][:2]
         base = sub.base if sub.shape else sub
         code = _DTYPE_POINTFIELD.get(base.str[1:])
         if code is None:
@@ -175,7 +184,8 @@ def array_to_pointcloud2(points: np.ndarray, header: Any = None, *, is_dense: bo
     msg.point_step = int(points.dtype.itemsize)
     msg.row_step = msg.point_step * msg.width
     if is_dense is None:
-        is_dense = all(not np.isnan(grid[n]).any() for n in ('x', 'y', 'z') if n in points.dtype.names
+        is_dense = all(not np.isnan(grid[n]).any() for n in ('x', 'y', 'z')
+                       if n in points.dtype.names
                        and points.dtype[n].kind == 'f')
     msg.is_dense = bool(is_dense)
     _set_bytes(msg, 'data', np.ascontiguousarray(grid).reshape(-1).view(np.uint8))

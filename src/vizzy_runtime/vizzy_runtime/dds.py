@@ -1,4 +1,5 @@
-"""Cyclone DDS transport for the bundled runtime, speaking exactly what ROS 2's rmw_cyclonedds_cpp speaks.
+"""Cyclone DDS transport for the bundled runtime, speaking exactly what ROS 2's rmw_cyclonedds_cpp
+speaks.
 
 - topic `rt/<fully qualified name>`, type `pkg::msg::dds_::T_` (final struct, real fields, so the
   XTypes type information Cyclone attaches is the message's own);
@@ -12,18 +13,20 @@ Loopback only unless VIZZY_DDS_LAN=1: see loopback_config().
 from __future__ import annotations
 
 import atexit
+import contextlib
 import ctypes as ct
 import os
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
+import cyclonedds.idl.types as idl
 from cyclonedds._clayer import ddspy_take
 from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl.annotations import final
-import cyclonedds.idl.types as idl
 from cyclonedds.internal import DDS, dds_c_t, load_cyclonedds
 from cyclonedds.pub import DataWriter, Publisher
 from cyclonedds.qos import Policy, Qos
@@ -96,10 +99,8 @@ def _delete_participant_at_exit() -> None:
     global _participant
     with _lock:
         if _participant is not None:
-            try:
+            with contextlib.suppress(Exception):  # already gone
                 _participant._delete(_participant._ref)
-            except Exception:  # noqa: BLE001 - already gone
-                pass
             _participant = None
 
 
@@ -136,14 +137,17 @@ def _idl_field(desc: Any) -> Any:
     if kind == Nodetype.BASE:
         name, bound = rest
         if name in ('string', 'bounded_string'):
-            return idl.bounded_str[bound] if bound else str
+            # cyclonedds's idl types are generic through their metaclass, unseen by mypy
+            return idl.bounded_str[bound] if bound else str  # type: ignore[misc]
         return _PRIM[name]
     if kind == Nodetype.NAME:
         return idl_type(rest)
     sub, length = rest
     if kind == Nodetype.ARRAY:
-        return idl.array[_idl_field(sub), length]
-    return idl.sequence[_idl_field(sub), length] if length else idl.sequence[_idl_field(sub)]
+        return idl.array[_idl_field(sub), length]  # type: ignore[misc]
+    if length:  # cyclonedds's idl types are generic through their metaclass, unseen by mypy
+        return idl.sequence[_idl_field(sub), length]  # type: ignore[misc]
+    return idl.sequence[_idl_field(sub)]  # type: ignore[misc]
 
 
 # --- QoS ---------------------------------------------------------------------------------------
@@ -165,8 +169,10 @@ class QoS:
         policies: list[Any] = [
             Policy.Reliability.Reliable(max_blocking_time=100_000_000) if self.reliable
             else Policy.Reliability.BestEffort,
-            Policy.Durability.TransientLocal if self.transient_local else Policy.Durability.Volatile,
-            Policy.History.KeepAll if self.keep_all else Policy.History.KeepLast(max(1, self.depth)),
+            Policy.Durability.TransientLocal if self.transient_local
+            else Policy.Durability.Volatile,
+            Policy.History.KeepAll if self.keep_all
+            else Policy.History.KeepLast(max(1, self.depth)),
             Policy.DataRepresentation(use_cdrv0_representation=True),
         ]
         if self.deadline_ns:
@@ -182,7 +188,7 @@ class QoS:
         return Qos(*policies)
 
     @staticmethod
-    def from_dds(qos: Qos) -> 'QoS':
+    def from_dds(qos: Qos) -> QoS:
         """The ROS-relevant part of a discovered endpoint's QoS (bag recording, topic info)."""
         reliable = transient_local = keep_all = False
         depth = 1
@@ -195,13 +201,15 @@ class QoS:
                 depth = policy.depth
             elif policy == Policy.History.KeepAll:
                 keep_all = True
-        return QoS(reliable=reliable, transient_local=transient_local, keep_all=keep_all, depth=depth)
+        return QoS(reliable=reliable, transient_local=transient_local, keep_all=keep_all,
+                   depth=depth)
 
 
 def type_hash_user_data(typename: str) -> bytes:
     """USER_DATA that rmw_cyclonedds_cpp (Jazzy) puts on every endpoint: `typehash=RIHS01_…;`."""
     try:
-        return f'typehash={msgs.registry().store.hash_rihs01(msgs.normalize_type_name(typename))};'.encode()
+        typehash = msgs.registry().store.hash_rihs01(msgs.normalize_type_name(typename))
+        return f'typehash={typehash};'.encode()
     except Exception:  # noqa: BLE001 - a hash is informative only, never a reason to fail
         return b''
 
@@ -216,7 +224,8 @@ def _status_fn(name: str, struct: type) -> Any:
 
 
 _pub_matched = _status_fn('dds_get_publication_matched_status', dds_c_t.publication_matched_status)
-_sub_matched = _status_fn('dds_get_subscription_matched_status', dds_c_t.subscription_matched_status)
+_sub_matched = _status_fn('dds_get_subscription_matched_status',
+                          dds_c_t.subscription_matched_status)
 
 
 def _matched(fn: Any, struct: type, ref: int) -> int:
@@ -296,7 +305,8 @@ class RawWriter:
     def guid(self) -> bytes:
         return self._writer.guid.bytes
 
-    def write(self, payload: bytes | bytearray | memoryview, timestamp_ns: int | None = None) -> None:
+    def write(self, payload: bytes | bytearray | memoryview,
+              timestamp_ns: int | None = None) -> None:
         data = payload if isinstance(payload, bytes) else bytes(payload)
         if len(data) % 4:
             data += b'\0' * (4 - len(data) % 4)
@@ -311,13 +321,14 @@ class RawReader:
     """A DDS reader for a ROS topic handing out raw CDR bytes and their source timestamps."""
 
     def __init__(self, ros_topic: str, typename: str, qos: QoS,
-                 on_data: Callable[['RawReader'], None] | None = None) -> None:
+                 on_data: Callable[[RawReader], None] | None = None) -> None:
         self.topic_name = ros_topic
         self.typename = msgs.normalize_type_name(typename)
         self.qos = qos
         self._on_data = on_data
         self._early = False  # data (e.g. latched samples) may arrive before DataReader() returns
-        listener = Listener(on_data_available=lambda _r: self._data_available()) if on_data else None
+        listener = (Listener(on_data_available=lambda _r: self._data_available()) if on_data
+                    else None)
         self._reader = DataReader(participant(), _topic(ros_topic, self.typename),
                                   qos.to_dds(type_hash_user_data(self.typename)), listener=listener)
         if self._early and on_data:
@@ -338,7 +349,8 @@ class RawReader:
         return self._reader.guid.bytes
 
     def take(self, n: int = 64) -> list[tuple[bytes, int]]:
-        """Up to n samples as (cdr bytes, source timestamp ns); invalid (dispose) samples skipped."""
+        """Up to n samples as (cdr bytes, source timestamp ns); invalid (dispose) samples
+        skipped."""
         ret = ddspy_take(self._reader._ref, ANY_STATE, n)
         if isinstance(ret, int):
             raise DDSException(ret, f'taking from {self.topic_name}')
@@ -364,8 +376,11 @@ class Discovery:
     """Keeps the ROS topics seen on the DDS builtin publication/subscription topics."""
 
     def __init__(self) -> None:
-        from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsPublication,
-                                        BuiltinTopicDcpsSubscription)
+        from cyclonedds.builtin import (
+            BuiltinDataReader,
+            BuiltinTopicDcpsPublication,
+            BuiltinTopicDcpsSubscription,
+        )
         dp = participant()
         self._readers = [(BuiltinDataReader(dp, BuiltinTopicDcpsPublication), True),
                          (BuiltinDataReader(dp, BuiltinTopicDcpsSubscription), False)]
@@ -386,7 +401,8 @@ class Discovery:
                 if not alive:
                     self._endpoints.pop(key, None)
                 elif ros_topic and typename:
-                    self._endpoints[key] = Endpoint(ros_topic, typename, QoS.from_dds(sample.qos), key,
+                    self._endpoints[key] = Endpoint(ros_topic, typename, QoS.from_dds(sample.qos),
+                                                    key,
                                                     sample.participant_key.bytes, is_writer)
         return list(self._endpoints.values())
 
@@ -399,10 +415,8 @@ def delete(entity: RawReader | RawWriter) -> None:
     """Delete a reader or writer now (not at garbage collection), so peers see it go."""
     inner = getattr(entity, '_reader', None) or getattr(entity, '_writer', None)
     if inner is not None:
-        try:
+        with contextlib.suppress(Exception):  # already gone
             inner._delete(inner._ref)
-        except Exception:  # noqa: BLE001 - already gone
-            pass
 
 
 __all__ = [

@@ -1,4 +1,5 @@
-"""`make demo`: run the graph in simulation for a while, record everything to a bag, say what happened.
+"""`make demo`: run the graph in simulation for a while, record everything to a bag, say what
+happened.
 
     .venv/bin/python -m vizzy_runtime.demo [--duration 20] [--output bags/demo_<time>]
                                            [--view-port 8765 | --no-view]
@@ -86,7 +87,8 @@ class _Story:
                 self.most[topic] = max(self.most.get(topic, 0), len(items))
                 if field == 'detections' and len(items):
                     last_pass = max(d.pass_index for d in items)
-                    best = max((d for d in items if d.pass_index == last_pass), key=lambda d: d.score)
+                    best = max((d for d in items if d.pass_index == last_pass),
+                               key=lambda d: d.score)
                     self.labels[best.label] += 1
 
     def lines(self) -> list[str]:
@@ -96,7 +98,8 @@ class _Story:
             shares = ', '.join(f'{k} {100 * v / total:.0f}%' for k, v in self.holder.most_common())
             out.append(f'gaze held by: {shares} of the time; {self.saccades} saccades')
         if self.commands:
-            out.append('gaze commands: ' + ', '.join(f'{k} {v}' for k, v in self.commands.most_common()))
+            out.append('gaze commands: '
+                       + ', '.join(f'{k} {v}' for k, v in self.commands.most_common()))
         for topic, n in sorted(self.most.items()):
             out.append(f'{topic}: at most {n} in one message')
         if self.labels:
@@ -105,7 +108,8 @@ class _Story:
         return out
 
 
-STORY_TOPICS = ('/gaze/command', '/gaze/state', '/cylinders', '/mot/tracks', '/foveation/detections')
+STORY_TOPICS = ('/gaze/command', '/gaze/state', '/cylinders', '/mot/tracks',
+                '/foveation/detections')
 
 
 def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
@@ -122,7 +126,8 @@ def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
                 story.add(topic, msgs.deserialize(data, typename))
             except Exception as err:  # noqa: BLE001 - the summary goes on without it
                 print(f'demo: cannot decode a {topic} message: {err}', file=sys.stderr)
-        if topic in ('/vizzy/left/image_raw', '/vizzy/right/image_raw') and topic not in first_images:
+        if topic in ('/vizzy/left/image_raw',
+                     '/vizzy/right/image_raw') and topic not in first_images:
             try:
                 first_images[topic] = image_to_numpy(msgs.deserialize(data, typename))
             except Exception as err:  # noqa: BLE001 - a picture is a nicety, not the point
@@ -136,11 +141,13 @@ def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
         except Exception as err:  # noqa: BLE001
             about = f'undecodable: {err}'
         topics[topic] = {'type': typename, 'count': len(times),
-                         'rate_hz': round((len(times) - 1) / span, 1) if span > 0 else 0.0, 'last': about}
+                         'rate_hz': round((len(times) - 1) / span, 1) if span > 0 else 0.0,
+                         'last': about}
     picture = None
     if len(first_images) == 2:
         import cv2
-        both = np.hstack([first_images['/vizzy/left/image_raw'], first_images['/vizzy/right/image_raw']])
+        both = np.hstack([first_images['/vizzy/left/image_raw'],
+                          first_images['/vizzy/right/image_raw']])
         out_dir.mkdir(parents=True, exist_ok=True)
         picture = out_dir / 'cameras.png'
         cv2.imwrite(str(picture), cv2.cvtColor(both, cv2.COLOR_RGB2BGR))
@@ -148,8 +155,10 @@ def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--duration', type=float, default=20.0, help='seconds to record (default 20)')
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--duration', type=float, default=20.0,
+                        help='seconds to record (default 20)')
     parser.add_argument('--output', help='bag directory (default bags/demo_<time>)')
     parser.add_argument('--graph', help='graph YAML (default: vizzy_runtime config/graph.yaml)')
     parser.add_argument('--view-port', type=int, default=8765, metavar='PORT',
@@ -160,9 +169,10 @@ def main(argv: list[str] | None = None) -> int:
     out_dir = REPO / 'demo_output'
 
     graph = load_graph(ns.graph or default_graph_file())
-    print(f'demo: starting {len(graph.nodes)} nodes: {", ".join(n.name for n in graph.nodes)}', flush=True)
+    print(f'demo: starting {len(graph.nodes)} nodes: {", ".join(n.name for n in graph.nodes)}',
+          flush=True)
     out_dir.mkdir(parents=True, exist_ok=True)
-    log = open(out_dir / 'launch.log', 'w')
+    log = open(out_dir / 'launch.log', 'w')  # noqa: SIM115 - the launcher's log, closed below
     launcher = Launcher(graph, output=log)
     counts: dict[str, int] = {}
     view = None
@@ -173,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
                 view = start_or_warn(ns.view_port)
             launcher.start()
             if not _wait_for_graph(60):
-                print('demo: the graph did not come up within 60 s; see demo_output/launch.log', file=sys.stderr)
+                print('demo: the graph did not come up within 60 s; see demo_output/launch.log',
+                      file=sys.stderr)
             print(f'demo: recording all topics for {ns.duration:g} s into {bag_dir}', flush=True)
             counts = Recorder(bag_dir, exclude=DEMO_EXCLUDE).run(duration=ns.duration)
         except KeyboardInterrupt as stop:
@@ -186,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
                 view.stop()
 
     summary = summarize(bag_dir, out_dir)
-    print(f'\n== Vizzy demo: {sum(counts.values())} messages on {len(summary["topics"])} topics, bag {bag_dir}'
+    print(f'\n== Vizzy demo: {sum(counts.values())} messages on {len(summary["topics"])} topics, '
+          f'bag {bag_dir}'
           f' (not recorded: {", ".join(DEMO_EXCLUDE)})')
     print(f'{"topic":34} {"type":42} {"count":>6} {"Hz":>7}  last message')
     for topic, row in summary['topics'].items():

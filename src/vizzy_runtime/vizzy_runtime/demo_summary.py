@@ -90,8 +90,8 @@ class _Data:
     """What the page needs, gathered in one pass over the bag."""
     counts: dict[str, int] = field(default_factory=lambda: defaultdict(int))
     errors: list[str] = field(default_factory=list)
-    tf: '_TfHistory' = field(default_factory=lambda: _TfHistory())
-    recent_images: 'OrderedDict[int, tuple[str, bytes]]' = field(default_factory=OrderedDict)
+    tf: _TfHistory = field(default_factory=lambda: _TfHistory())
+    recent_images: OrderedDict[int, tuple[str, bytes]] = field(default_factory=OrderedDict)
     last_image: tuple[int, str, bytes] | None = None
     det_frame: tuple[int, str, bytes] | None = None   # the frame of det_arrays
     det_stamp: int | None = None
@@ -99,7 +99,8 @@ class _Data:
     det_unmatched: int = 0                             # detections whose frame was not found
     K: np.ndarray | None = None
     image_size: tuple[int, int] | None = None          # (width, height) from camera_info
-    gaze: list[tuple] = field(default_factory=list)    # (stamp, frame, x, y, z, saccade, source, ver, verg, tilt)
+    # (stamp, frame, x, y, z, saccade, source, ver, verg, tilt)
+    gaze: list[tuple] = field(default_factory=list)
     foveated: tuple[int, str, bytes] | None = None
     clouds: list[_Cloud] = field(default_factory=list)
     cells: _Cloud | None = None
@@ -126,7 +127,7 @@ class _TfHistory:
         quats = np.array([(t.transform.rotation.x, t.transform.rotation.y,
                            t.transform.rotation.z, t.transform.rotation.w) for t in transforms])
         mats = matrices_from_transforms(trans, quats)
-        for t, m in zip(transforms, mats):
+        for t, m in zip(transforms, mats, strict=True):
             parent, child = t.header.frame_id.lstrip('/'), t.child_frame_id.lstrip('/')
             if static:
                 self.static[child] = (parent, m)
@@ -206,7 +207,8 @@ def _take(d: _Data, topic: str, msg: Any) -> None:
             d.image_size = (int(msg.width), int(msg.height))
     elif topic == GAZE:
         p = msg.fixation_point
-        d.gaze.append((stamp, frame, p.x, p.y, p.z, bool(msg.in_saccade), msg.active_source or 'idle',
+        d.gaze.append((stamp, frame, p.x, p.y, p.z, bool(msg.in_saccade),
+                       msg.active_source or 'idle',
                        msg.version, msg.vergence, msg.tilt))
     elif topic == DETECTIONS:
         # Keep the newest detections whose frame is still among the recent images (one array per
@@ -230,7 +232,8 @@ def _take(d: _Data, topic: str, msg: Any) -> None:
         rgb = None
         if 'rgb' in names and arr.dtype['rgb'].itemsize == 4:
             packed = np.ascontiguousarray(arr['rgb']).view(np.uint32)
-            rgb = np.stack([(packed >> 16) & 255, (packed >> 8) & 255, packed & 255], axis=1) / 255.0
+            rgb = np.stack([(packed >> 16) & 255, (packed >> 8) & 255, packed & 255],
+                           axis=1) / 255.0
         idx = np.flatnonzero(ok)
         if topic == POINTS and idx.size > POINTS_PER_CLOUD:
             idx = idx[np.linspace(0, idx.size - 1, POINTS_PER_CLOUD).astype(int)]
@@ -394,12 +397,14 @@ def _draw_left(ax: Any, d: _Data, p: Panel) -> None:
         notes.append(f'no usable {LEFT_INFO}: fixation track not drawn')
     if d.det_frame:
         final = max(det.pass_index for a in d.det_arrays for det in a.detections)
-        dets = sorted((det for a in d.det_arrays for det in a.detections if det.pass_index == final),
+        dets = sorted((det for a in d.det_arrays for det in a.detections
+                       if det.pass_index == final),
                       key=lambda det: -det.score)[:3]
         from matplotlib.patches import Rectangle
         for i, det in reversed(list(enumerate(dets))):   # the best drawn last, on top
             b = det.box
-            ax.add_patch(Rectangle((b.x_offset - 0.5, b.y_offset - 0.5), b.width, b.height, fill=False,
+            ax.add_patch(Rectangle((b.x_offset - 0.5, b.y_offset - 0.5), b.width, b.height,
+                                   fill=False,
                                    ec='lime' if i == 0 else 'cyan', lw=2.2 if i == 0 else 1.2,
                                    zorder=4 - i,
                                    label=('best detection' if i == 0 else
@@ -412,7 +417,8 @@ def _draw_left(ax: Any, d: _Data, p: Panel) -> None:
                 label='fovea of the first pass')
     else:
         notes.append(_missing(d, DETECTIONS) or (
-            f'{DETECTIONS}: the frames of its {d.det_unmatched} detection messages are not in the bag'
+            f'{DETECTIONS}: the frames of its {d.det_unmatched} detection messages are not in the '
+            'bag'
             if d.det_unmatched else f'{DETECTIONS}: no message with a detection'))
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc='lower left', fontsize=7, framealpha=0.8)
@@ -425,7 +431,8 @@ def _draw_left(ax: Any, d: _Data, p: Panel) -> None:
 def _left_frame(d: _Data) -> str:
     frame = d.det_frame or d.last_image
     assert frame is not None
-    return msgs.deserialize(frame[2], frame[1]).header.frame_id.lstrip('/') or 'left_camera_optical_frame'
+    return msgs.deserialize(frame[2],
+                            frame[1]).header.frame_id.lstrip('/') or 'left_camera_optical_frame'
 
 
 def _draw_foveated(ax: Any, d: _Data, p: Panel) -> None:
@@ -451,7 +458,8 @@ def plt_viridis_mid() -> tuple:
 
 
 def _robust_limits(xy: np.ndarray, pad: float = 0.15, cap: float = 6.0) -> tuple[tuple, tuple]:
-    """Axis limits holding all but the outermost 2 % of many points (all of a few), at most cap m."""
+    """Axis limits holding all but the outermost 2 % of many points (all of a few), at most cap
+    m."""
     q = 2 if len(xy) > 1000 else 0
     lo = np.nanpercentile(xy, q, axis=0) - pad
     hi = np.nanpercentile(xy, 100 - q, axis=0) + pad
@@ -484,9 +492,10 @@ def _draw_points(ax: Any, d: _Data, p: Panel, top: str) -> None:
                 break
         if placed:
             xyz = np.vstack([q for q, _ in placed])
-            rgb = (np.vstack([r for _, r in placed]) if all(r is not None for _, r in placed)
-                   else None)
-            ax.scatter(xyz[:, 0], xyz[:, 1], s=1.5 if len(xyz) > 2000 else 10, c=rgb if rgb is not None else '0.4',
+            rgbs = [r for _, r in placed if r is not None]
+            rgb = np.vstack(rgbs) if len(rgbs) == len(placed) else None
+            ax.scatter(xyz[:, 0], xyz[:, 1], s=1.5 if len(xyz) > 2000 else 10,
+                       c=rgb if rgb is not None else '0.4',
                        alpha=0.5, lw=0, rasterized=True,
                        label=f'stereo points, {len(placed)} clouds (their own colour)')
             xy_all.append(xyz[:, :2])
@@ -513,15 +522,17 @@ def _draw_points(ax: Any, d: _Data, p: Panel, top: str) -> None:
         _empty(ax, '\n'.join(notes))
         return
     p.has_data = True
+    from matplotlib.artist import Artist
     from matplotlib.lines import Line2D
     from matplotlib.patches import Polygon
-    handles = [Line2D([], [], marker='o', ls='none', color='0.45', ms=4,
-                      label=f'stereo points, {len(d.clouds)} clouds (their own colour)')] if d.clouds else []
+    handles: list[Artist] = [Line2D([], [], marker='o', ls='none', color='0.45', ms=4,
+                      label=f'stereo points, {len(d.clouds)} clouds (their own '
+                            'colour)')] if d.clouds else []
     if d.cells is not None:
         handles.append(Line2D([], [], marker='s', ls='none', color=plt_viridis_mid(), ms=5,
                               label=f'SES cells (last {CELLS}, {len(d.cells.xyz)} cells)'))
     truth, _ = _place_truth(d, top)
-    for i, (_name, _kind, poly, _c, _r) in enumerate(truth):
+    for _i, (_name, _kind, poly, _c, _r) in enumerate(truth):
         ax.add_patch(Polygon(poly, closed=True, fc='none', ec='k', lw=0.7, zorder=4))
     if truth:
         handles.append(Polygon(np.zeros((3, 2)), fc='none', ec='k', lw=0.7,
@@ -533,7 +544,9 @@ def _draw_points(ax: Any, d: _Data, p: Panel, top: str) -> None:
     (x0, x1), (y0, y1) = _robust_limits(xy)
     ax.set_xlim(min(x0, -0.2), x1)
     ax.set_ylim(y0, y1)
-    outside = int(((xy[:, 0] < min(x0, -0.2)) | (xy[:, 0] > x1) | (xy[:, 1] < y0) | (xy[:, 1] > y1)).sum())
+    outside = int(((xy[:,
+                       0] < min(x0,
+                                -0.2)) | (xy[:, 0] > x1) | (xy[:, 1] < y0) | (xy[:, 1] > y1)).sum())
     if outside:
         notes.append(f'{outside} points beyond the view')
     _top_axes(ax, top)
@@ -611,14 +624,14 @@ def _draw_cylinders(ax: Any, d: _Data, p: Panel, top: str) -> None:
             ax.text(c[0], c[1] - r - 0.012, name, fontsize=6.5, ha='center', va='top',
                     color='darkgreen' if kind == 'cylinder' else '0.35', zorder=5)
     first = True
-    for label, c, a, r, h, conf in found_all:
+    for _label, c, a, r, h, _conf in found_all:
         poly = cylinder_footprint(c, a, r, h)
         ax.add_patch(Polygon(poly, closed=True, fc='tab:red', ec='none', alpha=0.15, zorder=3,
                              label=f'found, all {len(d.cylinders)} msgs\n(darker: more often)'
                              if first else None))
         first = False
     if last:
-        for i, (label, c, a, r, h, conf) in enumerate(last[1]):
+        for i, (_label, c, a, r, h, _conf) in enumerate(last[1]):
             poly = cylinder_footprint(c, a, r, h)
             ax.add_patch(Polygon(poly, closed=True, fc='none', ec='tab:red', lw=1.6, zorder=4,
                                  label=f'found, last msg\n(t = {_t(d, last[0]):.2f} s)'
@@ -731,7 +744,8 @@ def _draw_gaze(ax: Any, d: _Data, p: Panel) -> None:
     ax.set_ylabel('angle [deg]')
     ax.grid(True, lw=0.4, alpha=0.5)
     n_sacc = len(_runs(sacc))
-    ax.set_title(f'{p.title}\n{GAZE}: eye angles, {n_sacc} saccade{"s" if n_sacc != 1 else ""} (grey), holder (top strip)',
+    ax.set_title(f'{p.title}\n{GAZE}: eye angles, {n_sacc} saccade{"s" if n_sacc != 1 else ""} '
+                 '(grey), holder (top strip)',
                  fontsize=10)
     ax.legend(handles, labels, loc='lower left', fontsize=7, ncol=2, framealpha=0.85)
 
@@ -740,10 +754,11 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     """(start, end) index pairs of the runs of True (end exclusive)."""
     f = np.r_[False, np.asarray(flags, bool), False]
     edges = np.flatnonzero(np.diff(f.astype(int)))
-    return list(zip(edges[::2], edges[1::2]))
+    return list(zip(edges[::2], edges[1::2], strict=True))
 
 
-def summarize_bag(bag_dir: str | Path, out_path: str | Path, *, figsize: tuple[float, float] = FIGSIZE,
+def summarize_bag(bag_dir: str | Path, out_path: str | Path, *,
+                  figsize: tuple[float, float] = FIGSIZE,
                   dpi: int = DPI) -> dict[str, Any]:
     """Draw the one-page summary of a demo bag into out_path (PNG).
 
@@ -758,7 +773,8 @@ def summarize_bag(bag_dir: str | Path, out_path: str | Path, *, figsize: tuple[f
         'left': Panel('left', '1. Left camera: where the head looked, what foveation found',
                       (LEFT_IMAGE, LEFT_INFO, GAZE, DETECTIONS)),
         'foveated': Panel('foveated', '2. Foveated image (what the recogniser sees)', (FOVEATED,)),
-        'points': Panel('points', '3. 3D: stereo points and Sensory Ego-Sphere cells', (POINTS, CELLS)),
+        'points': Panel('points', '3. 3D: stereo points and Sensory Ego-Sphere cells',
+                        (POINTS, CELLS)),
         'cylinders': Panel('cylinders', '4. Cylinders found vs the scene\'s ground truth',
                            (CYLINDERS, GROUND_TRUTH)),
         'tracks': Panel('tracks', '5. Multiple-object tracks', (TRACKS,)),
@@ -768,7 +784,7 @@ def summarize_bag(bag_dir: str | Path, out_path: str | Path, *, figsize: tuple[f
     axes = fig.subplots(2, 3)
     draw = (_draw_left, _draw_foveated, lambda ax, dd, pp: _draw_points(ax, dd, pp, top),
             lambda ax, dd, pp: _draw_cylinders(ax, dd, pp, top), _draw_tracks, _draw_gaze)
-    for ax, (key, panel), fn in zip(axes.flat, panels.items(), draw):
+    for ax, (_key, panel), fn in zip(axes.flat, panels.items(), draw, strict=True):
         try:
             fn(ax, d, panel)
         except Exception as err:  # noqa: BLE001 - one broken panel must not lose the page
@@ -793,7 +809,8 @@ def summarize_bag(bag_dir: str | Path, out_path: str | Path, *, figsize: tuple[f
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('bag', help='a bag directory recorded by `make demo`')
     parser.add_argument('-o', '--output', default='demo_output/summary.png', help='PNG to write')
     ns = parser.parse_args(argv)

@@ -4,10 +4,11 @@ types so that it stays valid for the app.
     python -m vizzy_runtime.foxglove_layout [-o config/foxglove_layout.json]
 
 Left: both cameras, the foveation overlay (detections of both passes, fixation, fovea), the
-tracker's overlay, the cylinders on the RGB-D image and the foveated stream. Middle: a 3D view in base_link with
-the head model (robot_description), tf, the stereo points and the ego-sphere cells coloured by
-information (-log|Sigma|, Eq. 3.45), the cylinders and the simulator's ground-truth objects. Right:
-the gaze state over time (version, vergence, tilt; saccades), diagnostics and the log.
+tracker's overlay, the cylinders on the RGB-D image and the foveated stream. Middle: a 3D view in
+base_link with the head model (robot_description), tf, the stereo points and the ego-sphere cells
+coloured by information (-log|Sigma|, Eq. 3.45), the cylinders and the simulator's ground-truth
+objects. Right: the gaze state over time (version, vergence, tilt; saccades), diagnostics and
+the log.
 test_foxglove.py checks that the file is what this module writes and names only topics of the graph.
 """
 
@@ -33,39 +34,45 @@ GAZE_SERIES = (('/gaze/state.version', 'version [rad]'), ('/gaze/state.vergence'
 
 
 def _image(topic: str, title: str) -> fl.ImagePanel:
-    return fl.ImagePanel(title=title, config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic=topic)))
+    return fl.ImagePanel(title=title,
+                         config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic=topic)))
 
 
 def _by_information(size: float) -> fl.BaseRendererPointCloudTopicSettings:
     return fl.BaseRendererPointCloudTopicSettings(
-        visible=True, point_size=size, color_mode='colormap', color_field='information', color_map='turbo')
+        visible=True, point_size=size, color_mode='colormap', color_field='information',
+        color_map='turbo')
 
 
 def scene() -> fl.ThreeDeePanel:
-    topics = {
+    topics: dict[str, fl.BaseRendererTopicSettings] = {
         '/stereo/points': _by_information(3.0),
         '/ses/cells': _by_information(8.0),
         '/cylinders/markers': fl.BaseRendererRosMarkerTopicSettings(visible=True),
-        '/sim/ground_truth/objects': fl.BaseRendererRosMarkerTopicSettings(visible=True, color='#ffffff55'),
+        '/sim/ground_truth/objects': fl.BaseRendererRosMarkerTopicSettings(
+            visible=True, color='#ffffff55'),
     }
-    layers = {
+    layers: dict[str, fl.BaseRendererCustomLayerSettings] = {
         'grid': fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=4, divisions=8),
         'head': fl.BaseRendererUrdfLayerSettings(source_type='topic', topic='/robot_description'),
     }
-    return fl.ThreeDeePanel(title='Head, 3D points, ego-sphere, cylinders', config=fl.ThreeDeeConfig(
+    return fl.ThreeDeePanel(title='Head, 3D points, ego-sphere, cylinders',
+                            config=fl.ThreeDeeConfig(
         follow_tf=FIXED_FRAME, fixed_frame=FIXED_FRAME, topics=topics, layers=layers))
 
 
 def layout() -> fl.Layout:
     images = fl.SplitContainer(direction='column', items=[
         fl.SplitItem(content=fl.SplitContainer(direction='row', items=[
-            fl.SplitItem(content=_image(*IMAGES[i])), fl.SplitItem(content=_image(*IMAGES[i + 1]))]))
+            fl.SplitItem(content=_image(*IMAGES[i])),
+            fl.SplitItem(content=_image(*IMAGES[i + 1]))]))
         for i in range(0, len(IMAGES), 2)
     ])
     gaze = fl.PlotPanel(title='Gaze state', config=fl.PlotConfig(
         paths=[fl.PlotSeries(value=value, label=label) for value, label in GAZE_SERIES]))
     side = fl.SplitContainer(direction='column', items=[
-        fl.SplitItem(content=gaze), fl.SplitItem(content=fl.DiagnosticsSummaryPanel(title='Diagnostics')),
+        fl.SplitItem(content=gaze),
+        fl.SplitItem(content=fl.DiagnosticsSummaryPanel(title='Diagnostics')),
         fl.SplitItem(content=fl.LogPanel(title='/rosout')),
     ])
     return fl.Layout(content=fl.SplitContainer(direction='row', items=[
@@ -103,7 +110,8 @@ def topics_named(data: object) -> set[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('-o', '--output', type=Path, default=None, help='write here (default: stdout)')
+    parser.add_argument('-o', '--output', type=Path, default=None,
+                        help='write here (default: stdout)')
     ns = parser.parse_args(argv)
     if ns.output is None:
         sys.stdout.write(layout_json())

@@ -25,9 +25,10 @@ import math
 import random
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from cyclonedds.core import DDSException
@@ -41,7 +42,8 @@ INT_RANGES = {
     'int32': (-2**31, 2**31 - 1), 'uint64': (0, 2**64 - 1), 'int64': (-2**63, 2**63 - 1)}
 FLOATS = ('float32', 'float64')
 BAD_FLOATS = (math.nan, math.inf, -math.inf, 0.0, -0.0, 1e38, -1e38, 5e-324)
-BAD_STRINGS = ('', 'unknown', 'no_such_frame', 'x' * 4096, '../../etc/passwd', '\x00', 'yuv422_yuy2',
+BAD_STRINGS = ('', 'unknown', 'no_such_frame', 'x' * 4096, '../../etc/passwd', '\x00',
+               'yuv422_yuy2',
                'ü¿?')
 MAX_SEQUENCE = 4096  # elements a lengthened sequence may reach (keeps each message small)
 HANG_S = 15.0        # no /diagnostics from the node this long after a burst: a hang
@@ -62,7 +64,8 @@ def _image(frame: str = 'l_camera_optical_frame') -> Any:
     h, w = 24, 32
     data = np.random.default_rng(0).integers(0, 255, h * w * 3, dtype=np.uint8)
     return msgs.get_message('sensor_msgs/msg/Image')(
-        header=_header(frame), height=h, width=w, encoding='rgb8', is_bigendian=0, step=w * 3, data=data)
+        header=_header(frame), height=h, width=w, encoding='rgb8', is_bigendian=0, step=w * 3,
+        data=data)
 
 
 def _camera_info(frame: str = 'l_camera_optical_frame') -> Any:
@@ -284,7 +287,8 @@ class Mutator:
                 if roll < 0.15:
                     return 'malformed CDR', _raw_bad(_serialize(msg, self.typename), self.rng)
                 if roll < 0.5:
-                    return 'type-aware', _serialize(_semantic(self.typename, msg, self.rng), self.typename)
+                    return 'type-aware', _serialize(_semantic(self.typename, msg, self.rng),
+                                                    self.typename)
                 for _ in range(self.rng.randint(1, 3)):
                     msg = _mutate(self.typename, msg, self.rng)
                 return 'field', _serialize(msg, self.typename)
@@ -361,7 +365,7 @@ def fuzz_node(name: str, per_topic: int, seed: int, *, graph_file: str | Path | 
     alone = Graph(nodes=[spec], use_sim_time=graph.use_sim_time, respawn=False)
     report = NodeReport(node=name)
     log_path = log_dir / f'fuzz_{name}.log'
-    log = open(log_path, 'w+')
+    log = open(log_path, 'w+')  # noqa: SIM115 - the launcher's log, closed below
     launcher = Launcher(alone, output=log)
     diag = _Diagnostics(f'/{name}')
     disc = dds.Discovery()
@@ -433,12 +437,14 @@ def fuzz_node(name: str, per_topic: int, seed: int, *, graph_file: str | Path | 
     finally:
         ticking.set()
         diag.poll()
-        report.refusals = {k: int(v) for k, v in diag.values.items() if not k.endswith(': accepted')}
+        report.refusals = {k: int(v) for k, v in diag.values.items()
+                           if not k.endswith(': accepted')}
         report.accepted = {k[: -len(': accepted')]: int(v) for k, v in diag.values.items()
                            if k.endswith(': accepted')}
         codes = launcher.stop()
         report.exit_code = codes.get(name)
-        if not report.crashed and report.exit_code not in (0, None) and name not in launcher.escalated:
+        if (not report.crashed and report.exit_code not in (0, None)
+                and name not in launcher.escalated):
             report.crashed = True
         if name in launcher.escalated:
             report.hung = True

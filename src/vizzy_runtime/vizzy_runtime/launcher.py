@@ -17,6 +17,7 @@ namespaced node gets a copy of each file whose bare keys read `/**/sim` (namespa
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.metadata
 import math
@@ -28,9 +29,10 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, TextIO
+from typing import Any, TextIO
 
 import yaml
 
@@ -104,9 +106,10 @@ class Graph:
 
 
 def share_dir(package: str) -> Path:
-    """A package's share directory: the installed one under ROS 2, else its source folder src/<pkg>."""
+    """A package's share directory: the installed one under ROS 2, else its source folder
+    src/<pkg>."""
     try:
-        from ament_index_python.packages import get_package_share_directory  # type: ignore
+        from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory(package))
     except Exception:  # noqa: BLE001 - no ROS 2, or not installed there: use the source tree
         pass
@@ -114,6 +117,8 @@ def share_dir(package: str) -> Path:
         module = importlib.import_module(package)
     except ImportError:
         raise LaunchError(f'package {package!r} is not installed (run `make setup`)') from None
+    if module.__file__ is None:  # a namespace package: no source folder to point at
+        raise LaunchError(f'package {package!r} has no source folder')
     return Path(module.__file__).resolve().parent.parent
 
 
@@ -139,13 +144,16 @@ def load_graph(path: str | Path) -> Graph:
             out['respawn'] = entry['respawn']
         if 'respawn_delay' in entry:
             delay = entry['respawn_delay']
-            if isinstance(delay, bool) or not isinstance(delay, (int, float)) or not 0 <= delay < 3600:
-                raise LaunchError(f'graph file {p}: {where}: respawn_delay must be seconds in [0, 3600)')
+            if (isinstance(delay, bool) or not isinstance(delay, (int, float))
+                    or not 0 <= delay < 3600):
+                raise LaunchError(f'graph file {p}: {where}: respawn_delay must be seconds in [0, '
+                                  '3600)')
             out['respawn_delay'] = float(delay)
         if 'respawn_max_retries' in entry:
             retries = entry['respawn_max_retries']
             if isinstance(retries, bool) or not isinstance(retries, int) or retries < -1:
-                raise LaunchError(f'graph file {p}: {where}: respawn_max_retries must be an integer >= -1')
+                raise LaunchError(f'graph file {p}: {where}: respawn_max_retries must be an '
+                                  'integer >= -1')
             out['respawn_max_retries'] = retries
         if 'respawn_standby' in entry:
             if not isinstance(entry['respawn_standby'], bool):
@@ -155,7 +163,8 @@ def load_graph(path: str | Path) -> Graph:
 
     nodes = []
     for i, entry in enumerate(data['nodes']):
-        missing = [k for k in ('package', 'executable') if not isinstance(entry, dict) or k not in entry]
+        missing = [k for k in ('package', 'executable') if not isinstance(entry, dict)
+                   or k not in entry]
         if missing:
             raise LaunchError(f'graph file {p}: node #{i} lacks {", ".join(missing)}')
         name = entry.get('name') or entry['executable']
@@ -166,7 +175,8 @@ def load_graph(path: str | Path) -> Graph:
             remappings=dict(entry.get('remappings') or {}),
             arguments=[str(a) for a in entry.get('arguments') or []],
             use_sim_time=entry.get('use_sim_time'), **respawn_fields(f'node {name}', entry)))
-    graph_wide = respawn_fields('graph', {k: v for k, v in data.items() if k != 'respawn_max_retries'})
+    graph_wide = respawn_fields('graph',
+                                {k: v for k, v in data.items() if k != 'respawn_max_retries'})
     return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)), **graph_wide)
 
 
@@ -273,7 +283,7 @@ class stop_on_signals:
 
     SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
-    def __enter__(self) -> 'stop_on_signals':
+    def __enter__(self) -> stop_on_signals:
         self._previous: dict[int, Any] = {}
         if threading.current_thread() is threading.main_thread():
             for sig in self.SIGNALS:
@@ -296,7 +306,8 @@ class Launcher:
         self._params_dir = tempfile.TemporaryDirectory(prefix='vizzy_launch_',
                                                        ignore_cleanup_errors=True)
         # nodes of the bundled runtime bind their receive sockets to 127.0.0.1 (loopback.py)
-        self.env = dict(loopback.preload_env({**os.environ, **(env or {}), 'PYTHONUNBUFFERED': '1'}))
+        self.env = dict(loopback.preload_env({**os.environ, **(env or {}),
+                                              'PYTHONUNBUFFERED': '1'}))
         self.grace_s = grace_s
         self.output = output or sys.stdout
         self.procs: dict[str, subprocess.Popen[str]] = {}
@@ -368,13 +379,15 @@ class Launcher:
         proc = self._popen(name, self._commands[name][1])
         self.procs[name] = proc
         self._started_at[name] = time.monotonic()
-        self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: {name}{again}\n')
+        self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: '
+                          f'{name}{again}\n')
 
     def _keep_standby(self, name: str) -> None:
         """Start name's standby once its node has run STANDBY_AFTER_S (not at graph start-up, where
         the spares' imports would slow every node down)."""
         spec, cmd, _ = self._commands[name]
-        if not self.graph.standby(spec) or name in self.standbys and self.standbys[name].poll() is None:
+        if (not self.graph.standby(spec)
+                or name in self.standbys and self.standbys[name].poll() is None):
             return
         started = self._started_at.get(name)
         now = time.monotonic()
@@ -456,7 +469,8 @@ class Launcher:
                     if name not in self.stop_seconds and proc.poll() is not None:
                         self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
 
-            for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 1.0)):
+            for sig, grace in ((signal.SIGINT, self.grace_s), (signal.SIGTERM, 2.0),
+                               (signal.SIGKILL, 1.0)):
                 alive = {n: p for n, p in self.procs.items() if p.poll() is None}
                 if not alive:
                     break
@@ -470,10 +484,8 @@ class Launcher:
                             f'[WARNING] [launch]: process {name} (pid {proc.pid}) still running '
                             f'{previous[1]:g} s after {previous[0]}{why}: sending '
                             f'{signal.Signals(sig).name}\n')
-                    try:
+                    with contextlib.suppress(ProcessLookupError):
                         os.killpg(proc.pid, sig)
-                    except ProcessLookupError:
-                        pass
                 end = time.monotonic() + grace
                 while time.monotonic() < end and any(p.poll() is None for p in alive.values()):
                     note_exits(alive)
@@ -493,10 +505,8 @@ class Launcher:
         faulthandler on SIGUSR1; they go to the node's output, i.e. this log), so the log says
         where each was stuck."""
         for proc in alive.values():
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(proc.pid, signal.SIGUSR1)
-            except ProcessLookupError:
-                pass
         time.sleep(0.3)
 
     def _dismiss_standbys(self) -> None:
@@ -512,10 +522,8 @@ class Launcher:
             try:
                 proc.wait(2.0)
             except subprocess.TimeoutExpired:
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     os.killpg(proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
                 proc.wait()
 
     def failed(self, codes: dict[str, int | None] | None = None) -> dict[str, int | None]:
@@ -523,7 +531,8 @@ class Launcher:
         the escalation stop() reported."""
         codes = self.poll() if codes is None else codes
         return {n: c for n, c in codes.items()
-                if c not in (0, None, -signal.SIGINT, 128 + signal.SIGINT) and n not in self.escalated}
+                if c not in (0, None, -signal.SIGINT, 128 + signal.SIGINT)
+                and n not in self.escalated}
 
 
 def launch(graph_file: str | Path | None = None, duration: float | None = None,

@@ -23,9 +23,12 @@ import logging
 import threading
 import time
 from collections import Counter
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from . import loopback, msgs
+
+if TYPE_CHECKING:
+    from foxglove.websocket import ServerListener
 
 log = logging.getLogger('vizzy_runtime.live_view')
 
@@ -73,12 +76,14 @@ class LiveView:
 
     def start(self) -> int:
         import foxglove
+
         from . import dds
         self._context = foxglove.Context()
         self._discovery = dds.Discovery()
         self._server = foxglove.start_server(
             name=self.name, host=self.host, port=self.requested_port, context=self._context,
-            server_listener=self, capabilities=[])
+            # the server calls only the callbacks a listener has (on_subscribe, on_unsubscribe)
+            server_listener=cast('ServerListener', self), capabilities=[])
         self._thread = threading.Thread(target=self._loop, name='live_view', daemon=True)
         self._thread.start()
         return self.port
@@ -149,7 +154,8 @@ class LiveView:
                 log.warning('live view: not serving %s [%s]: %s', topic, typename, exc)
                 self._skipped.add(topic)
                 continue
-            self._channel_objs[topic] = foxglove.Channel(topic, schema=schema, message_encoding='cdr',
+            self._channel_objs[topic] = foxglove.Channel(topic, schema=schema,
+                                                         message_encoding='cdr',
                                                          context=self._context)
             self.channels[topic] = typename
         with self._lock:
@@ -158,7 +164,8 @@ class LiveView:
     def _reconcile_readers(self) -> None:
         from . import dds
         with self._lock:
-            wanted = {t for t, clients in self._subscribers.items() if clients and t in self.channels}
+            wanted = {t for t, clients in self._subscribers.items() if clients
+                      and t in self.channels}
             refresh, self._refresh = self._refresh & wanted, set()
             offers = dict(self._offers)
         for topic in list(self._readers):

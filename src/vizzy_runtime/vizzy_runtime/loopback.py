@@ -65,7 +65,8 @@ def preloaded(env: Mapping[str, str] = os.environ) -> bool:
 
 
 def preload_env(env: MutableMapping[str, str]) -> MutableMapping[str, str]:
-    """env with the shim added to LD_PRELOAD when this environment wants it (for child processes)."""
+    """env with the shim added to LD_PRELOAD when this environment wants it (for child
+    processes)."""
     shim = shim_path()
     if shim is not None and wanted(env) and not preloaded(env):
         env['LD_PRELOAD'] = ' '.join(p for p in (str(shim), env.get('LD_PRELOAD', '')) if p)
@@ -98,6 +99,7 @@ if __name__ == '__main__':
     # `LD_PRELOAD=$(python -m vizzy_runtime.loopback) python my_script.py`
     shim = shim_path()
     if shim is None:
-        print('vizzy: the loopback-bind shim is not built (reinstall vizzy_runtime)', file=sys.stderr)
+        print('vizzy: the loopback-bind shim is not built (reinstall vizzy_runtime)',
+              file=sys.stderr)
         sys.exit(2)
     print(shim)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +45,8 @@ def msgs_dir() -> Path:
 
 
 def normalize_type_name(name: str) -> str:
-    """'sensor_msgs/Image' or 'sensor_msgs/msg/Image' or 'sensor_msgs.msg.Image' -> 'sensor_msgs/msg/Image'."""
+    """'sensor_msgs/Image' or 'sensor_msgs/msg/Image' or 'sensor_msgs.msg.Image' ->
+    'sensor_msgs/msg/Image'."""
     parts = name.replace('.', '/').split('/')
     if len(parts) == 2:
         parts = [parts[0], 'msg', parts[1]]
@@ -91,7 +93,7 @@ class _Registry:
     def fields(self, typename: str) -> list[tuple[str, Any]]:
         return self.store.fielddefs[typename][1]
 
-    def constants(self, typename: str) -> list[tuple[str, str, Any]]:
+    def constants(self, typename: str) -> Sequence[tuple[str, str, Any]]:
         return self.store.fielddefs[typename][0]
 
     def get_class(self, typename: str) -> type:
@@ -146,12 +148,14 @@ def _array_property(typename: str, name: str, dtype: Any, length: int | None) ->
     def fset(self: Any, value: Any) -> None:
         if not (isinstance(value, np.ndarray) and value.dtype == dtype and value.ndim == 1):
             if isinstance(value, (bytes, bytearray, memoryview)) or type(value).__name__ == 'array':
-                value = np.frombuffer(value, dtype=np.uint8).view(dtype) if np.dtype(dtype).itemsize == 1 \
+                value = np.frombuffer(value,
+                                      dtype=np.uint8).view(dtype) if np.dtype(dtype).itemsize == 1 \
                     else np.asarray(value, dtype=dtype)
             else:
                 value = np.asarray(value, dtype=dtype).reshape(-1)
         if length is not None and value.size != length:
-            raise ValueError(f'{typename}.{name} must have exactly {length} elements, got {value.size}')
+            raise ValueError(f'{typename}.{name} must have exactly {length} elements, got '
+                             f'{value.size}')
         setattr(self, slot, value)
 
     return property(fget, fset)
@@ -195,7 +199,7 @@ def _make_class(registry: _Registry, typename: str) -> type:
     def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
         if len(args) > len(names):
             raise TypeError(f'{typename} takes at most {len(names)} positional arguments')
-        for name, value in zip(names, args):
+        for name, value in zip(names, args, strict=False):
             setattr(self, name, value)
         for name in names[len(args):]:
             value = kwargs.pop(name, None)
@@ -284,7 +288,8 @@ def deserialize(raw: bytes | memoryview, typename: str) -> Any:
     reg = registry()
     reg.get_class(typename)
     # a memoryview, so rosbags' rawdata[4:] does not copy the payload
-    return reg.store.deserialize_cdr(raw if isinstance(raw, memoryview) else memoryview(raw), typename)
+    return reg.store.deserialize_cdr(raw if isinstance(raw, memoryview) else memoryview(raw),
+                                     typename)
 
 
 def message_definition(typename: str) -> str:

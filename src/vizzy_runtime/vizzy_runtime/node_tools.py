@@ -35,14 +35,25 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
 
 from vizzy_runtime.loopback import exec_loopback_bound
 from vizzy_runtime.ros import (
-    ExternalShutdownException, FloatingPointRange, IntegerRange, InvalidHandle,
-    InvalidParameterTypeException, InvalidParameterValueException, Node, ParameterDescriptor,
-    ParameterException, RCLError, SetParametersResult, rclpy)
+    ExternalShutdownException,
+    FloatingPointRange,
+    IntegerRange,
+    InvalidHandle,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    Node,
+    ParameterDescriptor,
+    ParameterException,
+    RCLError,
+    SetParametersResult,
+    rclpy,
+)
 
 INT64_MIN, INT64_MAX = -2 ** 63, 2 ** 63 - 1
 _INTERVAL = re.compile(r'^\s*([\[(])\s*([^,\s]+)\s*,\s*([^,\s]+)\s*([\])])\s*$')
@@ -183,7 +194,7 @@ class Param:
         return None
 
     @classmethod
-    def of(cls, row: 'Param | tuple[str, Any, str]') -> 'Param':
+    def of(cls, row: Param | tuple[str, Any, str]) -> Param:
         """A table row as a Param (a bare (name, default, description) tuple has no rules)."""
         return row if isinstance(row, Param) else cls(*row)
 
@@ -621,5 +632,6 @@ def main_for(node_factory: Callable[[], Any]) -> Callable[..., None]:
 
 
 __all__ = ['Check', 'CheckAll', 'LatestWorker', 'Param', 'ParameterError', 'ParameterTable',
-           'declare_parameters', 'guarded', 'main_for', 'publish_from_thread', 'replace_timer', 'run',
+           'declare_parameters', 'guarded', 'main_for', 'publish_from_thread', 'replace_timer',
+           'run',
            'startup_error_line']

@@ -67,7 +67,8 @@ def cmd_param(ns: argparse.Namespace) -> int:
             print(f'{TYPE_NAMES[value.type].capitalize()} value is: {_value_text(value)}')
             return 0
         if ns.param_verb == 'describe':
-            reply = _result(executor, client, client.describe_parameters([ns.name]), ns.timeout, name)
+            reply = _result(executor, client, client.describe_parameters([ns.name]), ns.timeout,
+                            name)
             if not reply.descriptors:
                 print(f'vizzy: {name}: parameter {ns.name!r} not declared', file=sys.stderr)
                 return 1
@@ -78,7 +79,8 @@ def cmd_param(ns: argparse.Namespace) -> int:
             if d.additional_constraints:
                 print(f'  Constraints: {d.additional_constraints}')
             for r in list(d.floating_point_range) + list(d.integer_range):
-                print(f'  Range: [{r.from_value}, {r.to_value}]' + (f' step {r.step}' if r.step else ''))
+                print(f'  Range: [{r.from_value}, {r.to_value}]'
+                      + (f' step {r.step}' if r.step else ''))
             if d.read_only:
                 print('  Read only: true')
             return 0
@@ -105,7 +107,8 @@ def cmd_param(ns: argparse.Namespace) -> int:
 def add_parser(sub: Any) -> None:
     param = sub.add_parser('param', help="a node's parameters (like ros2 param)").add_subparsers(
         dest='param_verb', required=True)
-    for verb, args in (('list', ()), ('get', ('name',)), ('describe', ('name',)), ('set', ('name', 'value'))):
+    for verb, args in (('list', ()), ('get', ('name',)), ('describe', ('name',)),
+                       ('set', ('name', 'value'))):
         p = param.add_parser(verb)
         p.add_argument('node', help='node name, e.g. /foveation')
         for arg in args:

@@ -27,7 +27,7 @@ if RUNTIME_CHOICE not in ('', 'bundled', 'ros'):
 USING_REAL_ROS = False
 if RUNTIME_CHOICE != 'bundled':
     try:
-        import rclpy  # type: ignore[import-not-found,no-redef]
+        import rclpy
         USING_REAL_ROS = True
     except ImportError as exc:
         if RUNTIME_CHOICE == 'ros':
@@ -35,43 +35,75 @@ if RUNTIME_CHOICE != 'bundled':
                               'use .venv-ros/bin/python or source ROS 2 Jazzy') from None
 
 if USING_REAL_ROS:
-    from rclpy.context import Context  # type: ignore[import-not-found]
-    from rcl_interfaces.msg import (  # type: ignore[import-not-found]
-        FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult)
-    from rclpy.duration import Duration  # type: ignore[import-not-found]
-    from rclpy.exceptions import (  # type: ignore[import-not-found]
-        InvalidParameterTypeException, InvalidParameterValueException, ParameterException)
-    from rclpy.executors import (  # type: ignore[import-not-found]
-        ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
-    from rclpy.exceptions import InvalidHandle  # type: ignore[import-not-found]
-    from rclpy.impl.implementation_singleton import (  # type: ignore[import-not-found]
-        rclpy_implementation as _rclpy_impl)
+    from rcl_interfaces.msg import (
+        FloatingPointRange,
+        IntegerRange,
+        ParameterDescriptor,
+        ParameterType,
+        SetParametersResult,
+    )
+    from rclpy.context import Context
+    from rclpy.duration import Duration
+    from rclpy.exceptions import (
+        InvalidHandle,
+        InvalidParameterTypeException,
+        InvalidParameterValueException,
+        ParameterException,
+    )
+    from rclpy.executors import (
+        ExternalShutdownException,
+        MultiThreadedExecutor,
+        SingleThreadedExecutor,
+    )
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
     RCLError = _rclpy_impl.RCLError  # e.g. publishing on a context that was shut down
-    from rclpy.node import Node  # type: ignore[import-not-found]
-    from rclpy.parameter import Parameter  # type: ignore[import-not-found]
-    from rclpy.parameter_client import AsyncParameterClient  # type: ignore[import-not-found]
-    from rclpy.qos import (  # type: ignore[import-not-found]
-        DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data,
-        qos_profile_system_default)
-    from rclpy.time import Time  # type: ignore[import-not-found]
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.qos import (
+        DurabilityPolicy,
+        HistoryPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+        qos_profile_sensor_data,
+        qos_profile_system_default,
+    )
+    from rclpy.time import Time
 else:
-    from . import rclpy_compat as rclpy  # type: ignore[no-redef]
-    from .rclpy_compat.context import Context  # type: ignore[assignment]
-    from .rclpy_compat.duration import Duration  # type: ignore[assignment]
-    from .rclpy_compat.exceptions import (  # type: ignore[assignment]
-        InvalidParameterTypeException, InvalidParameterValueException, ParameterException)
-    from .rclpy_compat.executors import (  # type: ignore[assignment]
-        ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor)
-    from .rclpy_compat.exceptions import InvalidHandle, RCLError  # type: ignore[assignment]
-    from .rclpy_compat.node import Node  # type: ignore[assignment]
-    from .rclpy_compat.parameter import (  # type: ignore[assignment]
-        FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, ParameterType,
-        SetParametersResult)
-    from .rclpy_compat.parameter_client import AsyncParameterClient  # type: ignore[assignment]
-    from .rclpy_compat.qos import (  # type: ignore[assignment]
-        DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data,
-        qos_profile_system_default)
-    from .rclpy_compat.time import Time  # type: ignore[assignment]
+    from . import rclpy_compat as rclpy
+    from .rclpy_compat.context import Context
+    from .rclpy_compat.duration import Duration
+    from .rclpy_compat.exceptions import (
+        InvalidHandle,
+        InvalidParameterTypeException,
+        InvalidParameterValueException,
+        ParameterException,
+        RCLError,
+    )
+    from .rclpy_compat.executors import (
+        ExternalShutdownException,
+        MultiThreadedExecutor,
+        SingleThreadedExecutor,
+    )
+    from .rclpy_compat.node import Node
+    from .rclpy_compat.parameter import (
+        FloatingPointRange,
+        IntegerRange,
+        Parameter,
+        ParameterDescriptor,
+        ParameterType,
+        SetParametersResult,
+    )
+    from .rclpy_compat.parameter_client import AsyncParameterClient
+    from .rclpy_compat.qos import (
+        DurabilityPolicy,
+        HistoryPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+        qos_profile_sensor_data,
+        qos_profile_system_default,
+    )
+    from .rclpy_compat.time import Time
 
 # /tf_static and other latched topics use this profile in ROS 2.
 qos_profile_latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
@@ -101,10 +133,11 @@ def message(typename: str) -> Any:
 
 
 __all__ = [
-    'USING_REAL_ROS', 'Context', 'Duration', 'DurabilityPolicy', 'ExternalShutdownException',
-    'FloatingPointRange', 'HistoryPolicy', 'IntegerRange', 'InvalidParameterTypeException',
-    'InvalidHandle', 'InvalidParameterValueException', 'MultiThreadedExecutor', 'Node', 'ParameterException',
-    'Parameter', 'ParameterDescriptor', 'ParameterType', 'QoSProfile', 'RCLError', 'ReliabilityPolicy',
-    'SetParametersResult', 'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched',
-    'qos_profile_sensor_data', 'qos_profile_system_default', 'rclpy', 'warm_up',
+    'USING_REAL_ROS', 'AsyncParameterClient', 'Context', 'Duration', 'DurabilityPolicy',
+    'ExternalShutdownException', 'FloatingPointRange', 'HistoryPolicy', 'IntegerRange',
+    'InvalidParameterTypeException', 'InvalidHandle', 'InvalidParameterValueException',
+    'MultiThreadedExecutor', 'Node', 'ParameterException', 'Parameter', 'ParameterDescriptor',
+    'ParameterType', 'QoSProfile', 'RCLError', 'ReliabilityPolicy', 'SetParametersResult',
+    'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched', 'qos_profile_sensor_data',
+    'qos_profile_system_default', 'rclpy', 'warm_up',
 ]

@@ -6,8 +6,9 @@ import contextlib
 import math
 import os
 import time
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any
 
 # check(name, value): why value is not acceptable for parameter name, or None if it is.
 Check = Callable[[str, Any], 'str | None']
@@ -94,7 +95,7 @@ def parameter_table_node(parameters: Sequence[Any], check: Check | None = None,
 
 @contextlib.contextmanager
 def parameter_refusals(parameters: Sequence[Any], check: Check | None = None,
-                       check_all: Any = None) -> Iterator[Callable[[str, Any], 'str | None']]:
+                       check_all: Any = None) -> Iterator[Callable[[str, Any], str | None]]:
     """refused(name, value): why a node declaring parameters refuses to set name to value (the
     SetParametersResult's reason), or None if it accepts (the old value is then set back)."""
     from vizzy_runtime.ros import Parameter

@@ -24,8 +24,8 @@ graph).
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterable, Sequence
-from typing import Any, Callable
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -104,7 +104,7 @@ class TransformBuffer:
             raise ValueError(f'{len(parents)} parents, {len(children)} children and '
                              f'{len(matrices)} matrices')
         edges = {}
-        for parent, child, m in zip(parents, children, matrices):
+        for parent, child, m in zip(parents, children, matrices, strict=True):
             parent, child = _strip(parent), _strip(child)
             if not parent or not child:
                 raise ValueError(f'empty frame id in transform {parent!r} -> {child!r}')
@@ -137,7 +137,7 @@ class TransformBuffer:
         try:
             matrices = matrices_from_transforms(trans, quats)
         except ValueError as exc:
-            bad = [f'{p}->{c}' for p, c, tr, q in zip(parents, children, trans, quats)
+            bad = [f'{p}->{c}' for p, c, tr, q in zip(parents, children, trans, quats, strict=True)
                    if not (np.isfinite(tr).all() and np.isfinite(q).all()
                            and np.linalg.norm(q) >= 1e-9)]
             raise ValueError(f'{exc} in transform(s) {bad}') from None
@@ -239,7 +239,12 @@ class TransformListener:
                  on_update: Callable[[Any], None] | None = None) -> None:
         from vizzy_runtime.node_tools import guarded
         from vizzy_runtime.ros import (
-            DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, message)
+            DurabilityPolicy,
+            HistoryPolicy,
+            QoSProfile,
+            ReliabilityPolicy,
+            message,
+        )
 
         self.buffer = buffer
         self._on_update = on_update

@@ -1,4 +1,5 @@
-"""Launch the simulated Vizzy head (vizzy_sim_bridge sim: MuJoCo, see docs/vizzy_sim_bridge.md) with config/sim.yaml.
+"""Launch the simulated Vizzy head (vizzy_sim_bridge sim: MuJoCo, see docs/vizzy_sim_bridge.md)
+with config/sim.yaml.
 
 The sim publishes /clock itself, so it always runs on wall time (use_sim_time false, set in
 config/sim.yaml); the nodes that follow it run with use_sim_time true.

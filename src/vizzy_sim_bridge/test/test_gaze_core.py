@@ -14,9 +14,25 @@ import pytest
 
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
-    LEFT_OPTICAL_FRAME, MIN_JERK_PEAK, RIGHT_OPTICAL_FRAME, Claim, GazeError, GazeSplit,
-    GazeStatus, MinimumJerk, arbitrate, cyclopean_ray, fixation_point, joint_targets,
-    home_posture, joint_limits, pursuit_step, saccade_duration, solve_fixation, velocity_limits)
+    LEFT_OPTICAL_FRAME,
+    MIN_JERK_PEAK,
+    RIGHT_OPTICAL_FRAME,
+    Claim,
+    GazeError,
+    GazeSplit,
+    GazeStatus,
+    MinimumJerk,
+    arbitrate,
+    cyclopean_ray,
+    fixation_point,
+    home_posture,
+    joint_limits,
+    joint_targets,
+    pursuit_step,
+    saccade_duration,
+    solve_fixation,
+    velocity_limits,
+)
 
 # The test camera of the brief: 640x480, 85.4 deg horizontal field of view, no distortion.
 WIDTH, HEIGHT, HFOV_DEG = 640, 480, 85.4
@@ -199,8 +215,10 @@ def test_joint_targets_outside_the_limits_are_refused_as_unreachable() -> None:
     target = joint_targets(['r_eye_joint'], [LO[i] - 1e-12], current)
     assert target[i] == LO[i]
     np.testing.assert_array_equal(np.delete(target, i), np.delete(current, i))
-    target = joint_targets(['l_eye_joint', 'neck_pan_joint'], [HI[IDX['l_eye_joint']], 0.1], current)
-    assert target[IDX['l_eye_joint']] == HI[IDX['l_eye_joint']] and target[IDX['neck_pan_joint']] == 0.1
+    target = joint_targets(['l_eye_joint', 'neck_pan_joint'], [HI[IDX['l_eye_joint']], 0.1],
+                           current)
+    assert target[IDX['l_eye_joint']] == HI[IDX['l_eye_joint']]
+    assert target[IDX['neck_pan_joint']] == 0.1
 
 
 @pytest.mark.parametrize('names, positions, status, words', [

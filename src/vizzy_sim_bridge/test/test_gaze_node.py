@@ -8,18 +8,25 @@ Nothing here asserts on wall-clock time: the tests wait for conditions.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
 
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
 from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
-    LEFT_OPTICAL_FRAME, RIGHT_OPTICAL_FRAME, GazeSplit, home_posture, joint_limits,
-    solve_fixation, velocity_limits)
-from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
+    LEFT_OPTICAL_FRAME,
+    RIGHT_OPTICAL_FRAME,
+    GazeSplit,
+    home_posture,
+    joint_limits,
+    solve_fixation,
+    velocity_limits,
+)
 from vizzy_sim_bridge.gaze_controller_node import PARAMETERS, GazeControllerNode
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -207,8 +214,8 @@ def test_bad_commands_are_rejected_and_reported(head_and_controller):
     lo, hi = joint_limits()
     i = NAMES.index('l_eye_joint')
     n = len(head.states)
-    head.send(**base, mode=GazeCommand.MODE_JOINT_TARGETS, joint_names=['l_eye_joint', 'neck_pan_joint'],
-              joint_positions=[5.0, 0.1])
+    head.send(**base, mode=GazeCommand.MODE_JOINT_TARGETS,
+              joint_names=['l_eye_joint', 'neck_pan_joint'], joint_positions=[5.0, 0.1])
     state = _wait_status(head, spin, n, GazeState.STATUS_REJECTED_UNREACHABLE,
                          'l_eye_joint target 5.0000 rad outside its limits')
     assert state.active_source == '' and not head.commands

@@ -150,7 +150,8 @@ def test_the_view_is_in_a_head_frame_and_shows_the_head() -> None:
     classes = [d['Class'] for d in _displays(manager['Displays'])]
     for cls in ('Grid', 'TF', 'RobotModel', 'PointCloud2', 'MarkerArray', 'Image'):
         assert f'rviz_default_plugins/{cls}' in classes
-    assert classes.count('rviz_default_plugins/Image') == 5   # both cameras, foveation, tracks, cylinders
+    # both cameras, foveation, tracks, cylinders
+    assert classes.count('rviz_default_plugins/Image') == 5
     model = next(d for d in manager['Displays'] if d['Class'].endswith('/RobotModel'))
     assert model['Description Source'] == 'Topic'
     assert model['Description Topic']['Durability Policy'] == 'Transient Local'

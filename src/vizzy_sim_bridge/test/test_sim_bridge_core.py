@@ -12,12 +12,31 @@ import numpy as np
 import pytest
 
 from vizzy_sim_bridge.core.camera import (
-    camera_matrix, focal_length, fovy_deg, project, projection_matrix)
+    camera_matrix,
+    focal_length,
+    fovy_deg,
+    project,
+    projection_matrix,
+)
 from vizzy_sim_bridge.core.kinematics import (
-    BASELINE, FRAME_NAMES, JOINT_LIMITS, JOINT_NAMES, VELOCITY_LIMIT, camera_poses,
-    clamp_to_limits, eye_joints, fixation_from_joints, frames_in_base, from_robot_joints,
-    gaze_angles, joint_transforms, matrix_to_quaternion, rotation_matrix, static_transforms,
-    to_robot_joints)
+    BASELINE,
+    FRAME_NAMES,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    VELOCITY_LIMIT,
+    camera_poses,
+    clamp_to_limits,
+    eye_joints,
+    fixation_from_joints,
+    frames_in_base,
+    from_robot_joints,
+    gaze_angles,
+    joint_transforms,
+    matrix_to_quaternion,
+    rotation_matrix,
+    static_transforms,
+    to_robot_joints,
+)
 
 HOME = [0.0] * 5
 
@@ -214,7 +233,7 @@ def test_converging_eyes_fixate_the_point_their_axes_meet() -> None:
     # swings with the eye), so turning each eye by atan(0.102 / 0.5) inwards aims it at target
     left, right = eye_joints(0.0, 2 * math.atan2(0.102, 0.5))
     assert left < 0 < right
-    point = fixation_from_joints(dict(zip(JOINT_NAMES, [0.0, 0.0, 0.0, left, right])))
+    point = fixation_from_joints(dict(zip(JOINT_NAMES, [0.0, 0.0, 0.0, left, right], strict=True)))
     np.testing.assert_allclose(point, target, atol=1e-9)
 
 

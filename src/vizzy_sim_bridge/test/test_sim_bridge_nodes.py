@@ -6,8 +6,13 @@ import pytest
 import yaml
 
 from vizzy_runtime.ros import Parameter
-from vizzy_runtime.testing import (check_node_parameters, check_parameter_table, node_under_test,
-                                   parameter_refusals, startup_problem)
+from vizzy_runtime.testing import (
+    check_node_parameters,
+    check_parameter_table,
+    node_under_test,
+    parameter_refusals,
+    startup_problem,
+)
 from vizzy_sim_bridge import gaze_controller_node, sim_node
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from vizzy_sim_bridge.core.kinematics import (
-    FRAME_NAMES, JOINT_LIMITS, JOINT_NAMES, VELOCITY_LIMIT, WAIST_HEIGHT, frames_in_base)
+    FRAME_NAMES,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    VELOCITY_LIMIT,
+    WAIST_HEIGHT,
+    frames_in_base,
+)
 from vizzy_sim_bridge.core.model import HeadSimulation, build_mjcf
 from vizzy_sim_bridge.core.scenes import Scene
 
@@ -124,7 +130,7 @@ def test_targets_are_clamped_and_unknown_joints_refused() -> None:
     assert sim.targets()['r_eye_joint'] == 0.1                  # nothing changed
     sim.step(300)
     q = sim.sample().position
-    for name, value in zip(JOINT_NAMES, q):
+    for name, value in zip(JOINT_NAMES, q, strict=True):
         lo, hi = JOINT_LIMITS[name]
         assert lo - 1e-3 <= value <= hi + 1e-3
 

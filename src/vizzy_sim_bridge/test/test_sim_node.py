@@ -15,13 +15,24 @@ import pytest
 
 from vizzy_runtime.convert import image_to_numpy, pointcloud2_to_array
 from vizzy_runtime.ros import (
-    Context, Node, Parameter, SingleThreadedExecutor, message, qos_profile_latched,
-    qos_profile_sensor_data)
+    Context,
+    Node,
+    Parameter,
+    SingleThreadedExecutor,
+    message,
+    qos_profile_latched,
+    qos_profile_sensor_data,
+)
 from vizzy_runtime.testing import wait_until
 from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.core.camera import camera_matrix
 from vizzy_sim_bridge.core.kinematics import (
-    BASELINE, JOINT_LIMITS, JOINT_NAMES, frames_in_base, static_transforms)
+    BASELINE,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    frames_in_base,
+    static_transforms,
+)
 from vizzy_sim_bridge.core.urdf import head_urdf
 from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
 
@@ -147,7 +158,7 @@ def test_rgbd_cloud_depth_and_info(running) -> None:
     pts = pointcloud2_to_array(cloud)
     valid = np.isfinite(pts['z'])
     assert valid.mean() > 0.5
-    assert 0.5 <= np.nanmin(pts['z']) and np.nanmax(pts['z']) <= 3.5
+    assert np.nanmin(pts['z']) >= 0.5 and np.nanmax(pts['z']) <= 3.5
     depth = listener.last['/vizzy/rgbd/depth/image_raw']
     assert depth.encoding == '32FC1' and depth.header.frame_id == cloud.header.frame_id
     info = listener.last['/vizzy/rgbd/camera_info']

@@ -9,8 +9,7 @@ import pytest
 
 from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.core.camera import camera_matrix, project
-from vizzy_sim_bridge.core.kinematics import (
-    JOINT_LIMITS, JOINT_NAMES, WAIST_HEIGHT, frames_in_base)
+from vizzy_sim_bridge.core.kinematics import JOINT_LIMITS, JOINT_NAMES, WAIST_HEIGHT, frames_in_base
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
 from vizzy_sim_bridge.core.rgbd import DepthProjector
 from vizzy_sim_bridge.core.scenes import Scene, build_scene
@@ -64,7 +63,7 @@ def test_smoke_render_at_reduced_resolution(backend) -> None:
 def _spheres_scene(points_world: np.ndarray, radii: np.ndarray) -> Scene:
     geoms = '\n'.join(
         f'<geom name="dot{i}" type="sphere" size="{r}" pos="{p[0]} {p[1]} {p[2]}" '
-        f'material="glow"/>' for i, (p, r) in enumerate(zip(points_world, radii)))
+        f'material="glow"/>' for i, (p, r) in enumerate(zip(points_world, radii, strict=True)))
     return Scene(name='dots', seed=0, worldbody_xml=geoms,
                  assets_xml='<material name="glow" rgba="1 1 1 1" emission="1" specular="0"/>')
 
@@ -155,5 +154,6 @@ def test_depth_is_the_distance_along_the_optical_axis(backend) -> None:
     cloud = DepthProjector(k, 640, 480).cloud(depth, rgb)
     corner = cloud[0, 0]
     half_w = 1.5 * 319.5 / k[0, 0]
-    assert (corner['x'], corner['y'], corner['z']) == pytest.approx((-half_w, -1.5 * 239.5 / k[1, 1], 1.5), abs=3e-3)
+    assert (corner['x'], corner['y'], corner['z']) == pytest.approx(
+        (-half_w, -1.5 * 239.5 / k[1, 1], 1.5), abs=3e-3)
     assert math.degrees(2 * math.atan(320 / k[0, 0])) == pytest.approx(58.0)

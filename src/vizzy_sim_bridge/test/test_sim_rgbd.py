@@ -1,12 +1,19 @@
-"""The RGB-D sensor model: depth noise grows with range, invalid depth is NaN, clouds are organized."""
+"""The RGB-D sensor model: depth noise grows with range, invalid depth is NaN, clouds are
+organized."""
 
 import numpy as np
 import pytest
 
 from vizzy_sim_bridge.core.camera import camera_matrix
 from vizzy_sim_bridge.core.rgbd import (
-    CLOUD_DTYPE, DepthProjector, XTION_SIGMA_COEFFICIENT, depth_sigma, noisy_depth, pack_rgb,
-    unpack_rgb)
+    CLOUD_DTYPE,
+    XTION_SIGMA_COEFFICIENT,
+    DepthProjector,
+    depth_sigma,
+    noisy_depth,
+    pack_rgb,
+    unpack_rgb,
+)
 
 
 def test_depth_noise_statistics_grow_with_range() -> None:
@@ -18,7 +25,7 @@ def test_depth_noise_statistics_grow_with_range() -> None:
         assert abs(err.mean()) < 5 * depth_sigma(z) / np.sqrt(err.size) + 1e-6   # unbiased
         stds.append(err.std())
         assert err.std() == pytest.approx(XTION_SIGMA_COEFFICIENT * z * z, rel=0.05)
-    assert all(a < b for a, b in zip(stds, stds[1:]))
+    assert all(a < b for a, b in zip(stds, stds[1:], strict=False))
     assert stds[-1] / stds[0] == pytest.approx((3.0 / 0.6) ** 2, rel=0.1)    # quadratic
 
 
@@ -35,7 +42,8 @@ def test_rgb_packing_round_trips() -> None:
     packed = pack_rgb(rgb)
     assert packed.dtype == np.float32
     bits = packed.view(np.uint32)
-    assert int(bits[0, 0]) == (int(rgb[0, 0, 0]) << 16) | (int(rgb[0, 0, 1]) << 8) | int(rgb[0, 0, 2])
+    assert int(bits[0, 0]) == ((int(rgb[0, 0, 0]) << 16) | (int(rgb[0, 0, 1]) << 8)
+                               | int(rgb[0, 0, 2]))
     np.testing.assert_array_equal(unpack_rgb(packed), rgb)
 
 

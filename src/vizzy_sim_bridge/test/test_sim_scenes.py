@@ -6,12 +6,17 @@ import numpy as np
 import pytest
 
 from vizzy_sim_bridge.core.camera import camera_matrix, project
-from vizzy_sim_bridge.core.kinematics import camera_poses, frames_in_base
+from vizzy_sim_bridge.core.kinematics import WAIST_HEIGHT, camera_poses, frames_in_base
 from vizzy_sim_bridge.core.model import compile_model
 from vizzy_sim_bridge.core.scenes import (
-    CAN_HEIGHT, CAN_RADIUS, SCENE_NAMES, TABLE_TOP_Z, SceneUnavailable, build_scene,
-    pedestrian_boxes)
-from vizzy_sim_bridge.core.kinematics import WAIST_HEIGHT
+    CAN_HEIGHT,
+    CAN_RADIUS,
+    SCENE_NAMES,
+    TABLE_TOP_Z,
+    SceneUnavailable,
+    build_scene,
+    pedestrian_boxes,
+)
 
 HOME = [0.0] * 5
 K = camera_matrix(640, 480, 85.4)

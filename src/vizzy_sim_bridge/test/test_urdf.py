@@ -27,8 +27,15 @@ from scipy.spatial.transform import Rotation
 from vizzy_runtime.ros import message
 from vizzy_sim_bridge import head_urdf as head_urdf_cli
 from vizzy_sim_bridge.core.kinematics import (
-    FRAME_NAMES, JOINT_LIMITS, JOINT_NAMES, VELOCITY_LIMITS, frames_in_base, joint_transforms,
-    static_transforms, world_transform)
+    FRAME_NAMES,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    VELOCITY_LIMITS,
+    frames_in_base,
+    joint_transforms,
+    static_transforms,
+    world_transform,
+)
 from vizzy_sim_bridge.core.model import HeadSimulation
 from vizzy_sim_bridge.core.scenes import Scene
 from vizzy_sim_bridge.core.urdf import EFFORT_LIMIT, head_urdf, matrix_to_rpy

@@ -72,9 +72,22 @@ from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 from vizzy_sim_bridge.core import kinematics
 from vizzy_sim_bridge.core.gaze import (
-    BASE_FRAME, Claim, GazeError, GazeSplit, GazeStatus, MinimumJerk, arbitrate,
-    check_finite_point, fixation_point, home_posture, joint_targets, pursuit_step,
-    saccade_duration, solve_fixation, velocity_limits)
+    BASE_FRAME,
+    Claim,
+    GazeError,
+    GazeSplit,
+    GazeStatus,
+    MinimumJerk,
+    arbitrate,
+    check_finite_point,
+    fixation_point,
+    home_posture,
+    joint_targets,
+    pursuit_step,
+    saccade_duration,
+    solve_fixation,
+    velocity_limits,
+)
 
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
@@ -211,7 +224,7 @@ class GazeControllerNode(Node):
         measured = (self._measured.copy() if self._measured is not None
                     else (self._setpoint.copy() if self._setpoint is not None else home_posture()))
         skipped = []
-        for name, value in zip(names, positions):
+        for name, value in zip(names, positions, strict=True):
             if name not in self._names:
                 continue   # another joint of the robot
             if not math.isfinite(value):
@@ -331,7 +344,7 @@ class GazeControllerNode(Node):
         clock_now = self.get_clock().now()
         now = self._seconds(clock_now.nanoseconds)  # the setpoint's time is also its stamp
         if self._last_tick is not None and not 0.0 <= now - self._last_tick <= _CLOCK_JUMP_S:
-            self._on_clock_jump(now)
+            self._on_clock_jump(now, self._last_tick)
         if self._trajectory is not None:
             self._setpoint = self._trajectory.position(now)
             if self._trajectory.done(now):
@@ -353,10 +366,10 @@ class GazeControllerNode(Node):
                 self._claim = dataclasses.replace(self._claim, reached=now)
             self._publish_state()
 
-    def _on_clock_jump(self, now: float) -> None:
+    def _on_clock_jump(self, now: float, last_tick: float) -> None:
         """The clock jumped (sim time reset, bag looped, use_sim_time changed): carry on from
         where the motion was, rather than jump the head to wherever the new time would say."""
-        shift = now - self._last_tick - 1.0 / self._p['control_rate_hz']
+        shift = now - last_tick - 1.0 / self._p['control_rate_hz']
         self.get_logger().info(f'the clock jumped by {shift:+.3f} s; motion continues from '
                                'where it was', throttle_duration_sec=5.0)
         if self._trajectory is not None:

@@ -35,7 +35,8 @@ CONFIG = Path(__file__).resolve().parents[1] / 'config'
 # a replay shows tracks forming and the ego-sphere filling; the rates keep each bag near 25 MB.
 PLAN: dict[str, tuple[float, float, float, str]] = {
     'tabletop': (1.5, 0.25, 12.0, '[0.0, 0.2, 0.15, 0.0, 0.0]'),
-    'visual_search': (0.75, 0.15, 12.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),   # rich texture: ~0.9 MB/image
+    # visual_search: rich texture, ~0.9 MB/image
+    'visual_search': (0.75, 0.15, 12.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),
     'pedestrians': (1.5, 0.25, 12.0, '[0.0, 0.0, 0.0, 0.0, 0.0]'),
 }
 # Not recorded: the depth image is the organized cloud's z (the cylinder detector reads the cloud).
@@ -84,7 +85,8 @@ def record(scene: str, out: Path, check: bool) -> int:
     states: list[Any] = []
     for side in ('left', 'right'):
         node.create_subscription(Image, f'/vizzy/{side}/image_raw',
-                                 lambda m, s=side: images.__setitem__(s, m), qos_profile_sensor_data)
+                                 lambda m, s=side: images.__setitem__(s, m),
+                                 qos_profile_sensor_data)
     node.create_subscription(GazeState, '/gaze/state', states.append, 10)
     joints: list[Any] = []
     node.create_subscription(message('sensor_msgs/msg/JointState'), '/joint_states',
@@ -142,7 +144,7 @@ def _report(scene: str, k: int, point: np.ndarray, joint_state: Any, state: Any)
     """Where the fixation point projects in both images with the joints the sim reports."""
     from vizzy_sim_bridge.core.camera import camera_matrix, project
     from vizzy_sim_bridge.core.kinematics import camera_poses
-    q = dict(zip(joint_state.name, (float(v) for v in joint_state.position)))
+    q = dict(zip(joint_state.name, (float(v) for v in joint_state.position), strict=True))
     kk = camera_matrix(640, 480, 85.4)
     offsets = {side: project(kk, pose, point[None])[0] - (319.5, 239.5)
                for side, pose in camera_poses(q).items()}

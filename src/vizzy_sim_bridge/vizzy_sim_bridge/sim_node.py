@@ -44,6 +44,7 @@ A processed command (clamped or not) counts as accepted on that topic.
 from __future__ import annotations
 
 import array
+import contextlib
 import math
 import os
 import sys
@@ -56,16 +57,39 @@ import numpy as np
 
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
 from vizzy_runtime.input_health import InputHealth
-from vizzy_runtime.node_tools import (Param, declare_parameters, guarded, main_for,
-                                      publish_from_thread, replace_timer)
+from vizzy_runtime.node_tools import (
+    Param,
+    declare_parameters,
+    guarded,
+    main_for,
+    publish_from_thread,
+    replace_timer,
+)
 from vizzy_runtime.ros import (
-    USING_REAL_ROS, ExternalShutdownException, Node, Parameter, QoSProfile, SetParametersResult, message,
-    qos_profile_latched)
+    USING_REAL_ROS,
+    ExternalShutdownException,
+    Node,
+    Parameter,
+    QoSProfile,
+    SetParametersResult,
+    message,
+    qos_profile_latched,
+)
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 from vizzy_sim_bridge.core.camera import camera_matrix, project, projection_matrix
 from vizzy_sim_bridge.core.kinematics import (
-    BASELINE, CAMERA_FRAMES, JOINT_LIMITS, JOINT_NAMES, RGBD_FRAME, Transform, frames_in_base,
-    joint_transforms, rotation_matrix, static_transforms, world_transform)
+    BASELINE,
+    CAMERA_FRAMES,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    RGBD_FRAME,
+    Transform,
+    frames_in_base,
+    joint_transforms,
+    rotation_matrix,
+    static_transforms,
+    world_transform,
+)
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
 from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
 from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
@@ -300,7 +324,8 @@ class SimNode(Node):
         eye = CameraSpec(int(p['width']), int(p['height']), float(p['horizontal_fov_deg']))
         rgbd = CameraSpec(int(p['rgbd_width']), int(p['rgbd_height']),
                           float(p['rgbd_horizontal_fov_deg']))
-        initial = dict(zip(JOINT_NAMES, (float(v) for v in p['initial_joint_positions'])))
+        initial = dict(zip(JOINT_NAMES, (float(v) for v in p['initial_joint_positions']),
+                           strict=True))
         self._sim = HeadSimulation(self._scene, initial, eye, rgbd)
         for note in self._sim.set_targets(initial):
             log.warning(f'initial_joint_positions: {note}')
@@ -438,6 +463,7 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ timers
     def _on_clock(self) -> None:
+        assert self._clock_pub is not None      # its timer exists only with the publisher
         self._clock_pub.publish(Clock(clock=self._now(self._sim.time)))
 
     def _on_joint_tick(self) -> None:
@@ -522,6 +548,7 @@ class SimNode(Node):
         stamp = self._now(t)
         rgb, depth = self._renderer.render(self._render_data, self._rgbd_cam, depth=True,
                                            width=self._rgbd.width, height=self._rgbd.height)
+        assert depth is not None                # asked for (depth=True)
         coeff = float(self._p['depth_noise_coefficient'])
         z = noisy_depth(depth, self._noise_rng if coeff > 0 else None, coeff,
                         float(self._p['rgbd_min_range_m']), float(self._p['rgbd_max_range_m']))
@@ -583,7 +610,7 @@ class SimNode(Node):
             return 'unknown joint', f'{unknown}; known: {", ".join(JOINT_NAMES)}'
         if len(set(names)) != len(names):
             return 'repeated joint', f'in {names}'
-        bad = [f'{n}={v}' for n, v in zip(names, positions) if not math.isfinite(v)]
+        bad = [f'{n}={v}' for n, v in zip(names, positions, strict=True) if not math.isfinite(v)]
         if bad:
             return 'non-finite target', ', '.join(bad)
         return None
@@ -597,8 +624,9 @@ class SimNode(Node):
         if problem is not None:
             self.input_health.refuse(topic, *problem)   # logged first time, then throttled
             return
-        speeds = dict(zip(names, velocities)) if len(velocities) == len(names) else None
-        for note in self._sim.set_targets(dict(zip(names, positions)), speeds):
+        speeds = (dict(zip(names, velocities, strict=True)) if len(velocities) == len(names)
+                  else None)
+        for note in self._sim.set_targets(dict(zip(names, positions, strict=True)), speeds):
             self._warn_throttled(note.split()[0], f'{topic}: {note}')   # clamped: no refusal
         self.input_health.accept(topic)
 
@@ -641,10 +669,8 @@ _main = main_for(SimNode)
 def standby_prepare() -> None:
     """For a standby (`vizzy run --standby`): probe the OpenGL backend now (a child process,
     0.8 s on a loaded machine); select_backend caches the answer for the node's construction."""
-    try:
+    with contextlib.suppress(RendererUnavailable, ValueError):   # the node says why when it starts
         select_backend(os.environ.get('MUJOCO_GL', 'auto') or 'auto')
-    except (RendererUnavailable, ValueError):
-        pass   # the node itself says why when it starts
 
 
 def main(args: list[str] | None = None) -> None:

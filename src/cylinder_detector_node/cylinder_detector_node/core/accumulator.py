@@ -28,7 +28,8 @@ class OrientationGMM:
     def __post_init__(self) -> None:
         m = len(self.weights)
         if m == 0 or len(self.means) != m or len(self.covariances) != m:
-            raise ValueError('OrientationGMM: weights, means and covariances need the same non-zero length')
+            raise ValueError('OrientationGMM: weights, means and covariances need the same '
+                             'non-zero length')
         if any(w < 0 for w in self.weights) or sum(self.weights) <= 0:
             raise ValueError('OrientationGMM: weights must be non-negative with a positive sum')
         if any(c <= 0 for cov in self.covariances for c in cov):
@@ -64,7 +65,8 @@ def uniform_directions(n_d: int) -> Array:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
-def vote_curvature(directions: Array, normals: Array, c_max: Array, k_max: Array, sharpness: float = 1.0) -> Array:
+def vote_curvature(directions: Array, normals: Array, c_max: Array, k_max: Array,
+                   sharpness: float = 1.0) -> Array:
     """Soft votes A(i) = sum_s k_max^s [(1 - |d^i.c_max^s|)(1 - |d^i.n^s|)]^sharpness (Eq. 4.3).
 
     sharpness = 1 is Eq. 4.3 as printed. Absolute inner products make the vote independent of the
@@ -72,7 +74,8 @@ def vote_curvature(directions: Array, normals: Array, c_max: Array, k_max: Array
     """
     # float32: votes need no more, and the (N_d x N) products and powers run twice as fast
     f32 = np.float32
-    return votes_f32(directions.astype(f32, copy=False), np.stack([normals, c_max]).astype(f32, copy=False),
+    return votes_f32(directions.astype(f32, copy=False),
+                     np.stack([normals, c_max]).astype(f32, copy=False),
                      k_max.astype(f32, copy=False), sharpness).astype(np.float64)
 
 
@@ -88,7 +91,8 @@ def votes_f32(d: NDArray[np.float32], features: NDArray[np.float32], weights: ND
     v *= p[1]
     if sharpness != 1.0:
         e = float(sharpness)
-        if e.is_integer() and e > 0 and (int(e) & (int(e) - 1)) == 0:   # 2, 4, 8, ...: repeated squaring
+        # 2, 4, 8, ...: repeated squaring
+        if e.is_integer() and e > 0 and (int(e) & (int(e) - 1)) == 0:
             for _ in range(int(e).bit_length() - 1):
                 v *= v
         else:

@@ -4,8 +4,8 @@ The thesis fine-tunes a SqueezeNet on patches cut out of the RGB image around ea
 cluster, so that clusters that are not cylinders never reach the (costlier, and fooled by boxes
 and spheres) Hough fit. Here a much smaller CNN of the same family (Fire-like blocks: 1x1
 squeeze, then 3x3 convolutions, global average pooling instead of fully connected layers) on
-64x64 patches, trained on simulated tabletop scenes by `train_cylinder_classifier` (the stored weights are
-in cylinder_detector_node/models/).
+64x64 patches, trained on simulated tabletop scenes by `train_cylinder_classifier` (the stored
+weights are in cylinder_detector_node/models/).
 
 Patches: the cluster's image box made square (longest side + PATCH_MARGIN on each side, centred),
 cropped with zero padding where it leaves the image, resized to PATCH_SIZE with area
@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -31,7 +32,8 @@ MODEL_DIR = Path(__file__).resolve().parents[1] / 'models'
 DEFAULT_MODEL = MODEL_DIR / 'cylinder_classifier.pt'
 
 
-def square_box(box: tuple[int, int, int, int], margin: float = PATCH_MARGIN) -> tuple[int, int, int, int]:
+def square_box(box: tuple[int, int, int, int],
+               margin: float = PATCH_MARGIN) -> tuple[int, int, int, int]:
     """(u0, v0, u1, v1) -> a square box of side (1 + 2 margin) x the longest side, same centre."""
     u0, v0, u1, v1 = box
     side = max(u1 - u0, v1 - v0) * (1.0 + 2.0 * margin)
@@ -43,7 +45,8 @@ def square_box(box: tuple[int, int, int, int], margin: float = PATCH_MARGIN) -> 
 
 def extract_patch(image: NDArray[np.uint8], box: tuple[int, int, int, int], size: int = PATCH_SIZE,
                   margin: float = PATCH_MARGIN) -> NDArray[np.uint8]:
-    """The (size, size, 3) patch of image around box (u0, v0, u1, v1), square, zero-padded outside."""
+    """The (size, size, 3) patch of image around box (u0, v0, u1, v1), square, zero-padded
+    outside."""
     h, w = image.shape[:2]
     a, b, a1, b1 = square_box(box, margin)
     side = a1 - a
@@ -52,7 +55,7 @@ def extract_patch(image: NDArray[np.uint8], box: tuple[int, int, int, int], size
     if su1 > su0 and sv1 > sv0:
         crop[sv0 - b:sv1 - b, su0 - a:su1 - a] = image[sv0:sv1, su0:su1, :3]
     interp = cv2.INTER_AREA if side > size else cv2.INTER_LINEAR
-    return cv2.resize(crop, (size, size), interpolation=interp)
+    return cast(NDArray[np.uint8], cv2.resize(crop, (size, size), interpolation=interp))
 
 
 class Fire(nn.Module):
@@ -100,19 +103,21 @@ class PatchClassifier:
     meta: dict | None = None
 
     @classmethod
-    def load(cls, path: str | Path | None = None) -> 'PatchClassifier':
+    def load(cls, path: str | Path | None = None) -> PatchClassifier:
         """Weights and metadata from a .pt file (default: the packaged model). Raises
         FileNotFoundError / ValueError with the path in the message."""
         path = Path(path) if path else DEFAULT_MODEL
         if not path.is_file():
-            raise FileNotFoundError(f'no classifier model at {path} (train one with train_cylinder_classifier)')
+            raise FileNotFoundError(f'no classifier model at {path} '
+                                    f'(train one with train_cylinder_classifier)')
         try:
             blob = torch.load(path, map_location='cpu', weights_only=True)
             net = PatchNet()
             net.load_state_dict(blob['state_dict'])
             meta = json.loads(blob['meta'])
         except Exception as exc:   # a corrupt or foreign file: one clear message
-            raise ValueError(f'{path}: not a cylinder classifier model ({type(exc).__name__}: {exc})') from exc
+            raise ValueError(f'{path}: not a cylinder classifier model '
+                             f'({type(exc).__name__}: {exc})') from exc
         net.eval()
         return cls(net, np.asarray(meta['mean'], np.float32), np.asarray(meta['std'], np.float32),
                    float(meta.get('threshold', 0.5)), meta)
@@ -124,8 +129,11 @@ class PatchClassifier:
         torch.save({'state_dict': sd, 'meta': json.dumps(meta)}, path)
 
     def to_tensor(self, patches: NDArray[np.uint8]) -> torch.Tensor:
-        x = torch.from_numpy(np.ascontiguousarray(patches, dtype=np.float32)).permute(0, 3, 1, 2) / 255.0
-        return (x - torch.from_numpy(self.mean)[None, :, None, None]) / torch.from_numpy(self.std)[None, :, None, None]
+        x = torch.from_numpy(np.ascontiguousarray(patches, dtype=np.float32)).permute(0, 3, 1, 2)
+        x = x / 255.0
+        mean = torch.from_numpy(self.mean)[None, :, None, None]
+        std = torch.from_numpy(self.std)[None, :, None, None]
+        return (x - mean) / std
 
     def probabilities(self, patches: NDArray[np.uint8]) -> NDArray[np.float64]:
         """P(cylinder) of each (N, S, S, 3) uint8 RGB patch, one batched forward pass."""
@@ -135,7 +143,8 @@ class PatchClassifier:
             logits = self.net(self.to_tensor(patches).float())
         return torch.sigmoid(logits.float()).double().numpy()
 
-    def classify(self, image: NDArray[np.uint8], boxes: list[tuple[int, int, int, int]]) -> NDArray[np.float64]:
+    def classify(self, image: NDArray[np.uint8],
+                 boxes: list[tuple[int, int, int, int]]) -> NDArray[np.float64]:
         """P(cylinder) for each image box (u0, v0, u1, v1) of image (H, W, 3) RGB."""
         if not boxes:
             return np.zeros(0)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,7 +56,8 @@ def _ints(path: Path, key: str, words: list[str]) -> list[int]:
     try:
         return [int(w) for w in words]
     except ValueError:
-        raise CloudFileError(f'{path}: PCD header line {key} {" ".join(words)!r} is not integers') from None
+        raise CloudFileError(f'{path}: PCD header line {key} {" ".join(words)!r} '
+                             f'is not integers') from None
 
 
 def parse_pcd_header(path: Path, raw: bytes) -> tuple[PcdHeader, int]:
@@ -73,7 +75,8 @@ def parse_pcd_header(path: Path, raw: bytes) -> tuple[PcdHeader, int]:
         key, *words = line.split()
         if not key.isalpha() or not key.isupper():
             shown = f' {line[:40]!r}' if line.isascii() and line.isprintable() else ''
-            raise CloudFileError(f'{path}: not a PCD file (header line{shown} is no "KEY values" line)')
+            raise CloudFileError(f'{path}: not a PCD file '
+                                 f'(header line{shown} is no "KEY values" line)')
         fields[key] = words
         if key == 'DATA':
             break
@@ -87,7 +90,7 @@ def parse_pcd_header(path: Path, raw: bytes) -> tuple[PcdHeader, int]:
     if not len(names) == len(sizes) == len(types) == len(counts):
         raise CloudFileError(f'{path}: PCD header has {len(names)} FIELDS, {len(sizes)} SIZE, '
                              f'{len(types)} TYPE and {len(counts)} COUNT values')
-    for n, s, t, c in zip(names, sizes, types, counts):
+    for n, s, t, c in zip(names, sizes, types, counts, strict=True):
         if s not in PCD_TYPES.get(t, ()) or c < 1:
             raise CloudFileError(f'{path}: PCD field {n} has TYPE {t} SIZE {s} COUNT {c}')
     if not {'x', 'y', 'z'} <= set(names):
@@ -101,7 +104,7 @@ def parse_pcd_header(path: Path, raw: bytes) -> tuple[PcdHeader, int]:
     data = (fields['DATA'] or [''])[0].lower()
     if data not in PCD_DATA:
         raise CloudFileError(f'{path}: PCD DATA {data!r} is none of {", ".join(PCD_DATA)}')
-    step = sum(s * c for s, c in zip(sizes, counts))
+    step = sum(s * c for s, c in zip(sizes, counts, strict=True))
     return PcdHeader(names, width, height, points, data, step, sum(counts)), pos
 
 
@@ -169,7 +172,8 @@ def parse_ply_header(path: Path, raw: bytes) -> tuple[str, list[PlyElement], int
             try:
                 count = int(words[2])
             except ValueError:
-                raise CloudFileError(f'{path}: PLY element line {line.strip()[:40]!r} has no count') from None
+                raise CloudFileError(f'{path}: PLY element line {line.strip()[:40]!r} '
+                                     f'has no count') from None
             elements.append((words[1], count, [], []))
         elif words[0] == 'property' and elements and len(words) >= 3:
             if words[1] == 'list' and len(words) == 5:
@@ -179,10 +183,12 @@ def parse_ply_header(path: Path, raw: bytes) -> tuple[str, list[PlyElement], int
                 elements[-1][2].append(words[2])
                 elements[-1][3].append(PLY_SIZES[words[1]])
             else:
-                raise CloudFileError(f'{path}: PLY property line {line.strip()[:40]!r} has an unknown type')
+                raise CloudFileError(f'{path}: PLY property line {line.strip()[:40]!r} '
+                                     f'has an unknown type')
         else:
             shown = f' {line.strip()[:40]!r}' if line.isascii() and line.isprintable() else ''
-            raise CloudFileError(f'{path}: PLY header line{shown} is no format, element or property line')
+            raise CloudFileError(f'{path}: PLY header line{shown} is no format, element or '
+                                 f'property line')
     if fmt not in PLY_FORMATS:
         raise CloudFileError(f'{path}: PLY format {fmt!r} is none of {", ".join(PLY_FORMATS)}')
     out = [PlyElement(n, c, tuple(p), None if any(s is None for s in ss) else sum(ss))  # type: ignore[arg-type]
@@ -208,7 +214,7 @@ def check_ply(path: Path, raw: bytes) -> int:
         _check_ascii_rows(path, body, vertex.count, len(vertex.properties), 'PLY',
                           skip=sum(e.count for e in elements[:at]))
     elif all(e.size is not None for e in elements[:at + 1]):
-        need = sum(e.count * e.size for e in elements[:at + 1])   # type: ignore[operator]
+        need = sum(e.count * cast(int, e.size) for e in elements[:at + 1])   # sizes checked
         if len(body) < need:
             raise CloudFileError(f'{path}: truncated: {len(body)} bytes of binary data where '
                                  f'{vertex.count} vertices need {need}')
@@ -231,22 +237,25 @@ def read_cloud(path: Path) -> tuple[NDArray[np.float64], NDArray[np.uint8] | Non
         raw = path.read_bytes()
     except OSError as exc:
         raise CloudFileError(f'{path}: cannot read it: {exc.strerror or exc}') from None
+    head: PcdHeader | None = None
     if suffix == '.pcd':
-        head: PcdHeader | None = check_pcd(path, raw)
+        head = check_pcd(path, raw)
         declared = head.points
     else:
-        head, declared = None, check_ply(path, raw)
+        declared = check_ply(path, raw)
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)   # keep stdout pure JSON
-    pcd = o3d.io.read_point_cloud(str(path), format=suffix[1:], remove_nan_points=False,
+    pcd = o3d.io.read_point_cloud(path, format=suffix[1:], remove_nan_points=False,
                                   remove_infinite_points=False)
     pts = np.asarray(pcd.points, dtype=np.float64)
     if len(pts) != declared:
-        raise CloudFileError(f'{path}: not a readable {suffix[1:].upper()} point cloud (Open3D read '
-                             f'{len(pts)} of the {declared} points its header declares)')
+        raise CloudFileError(f'{path}: not a readable {suffix[1:].upper()} point cloud '
+                             f'(Open3D read {len(pts)} of the {declared} points its header '
+                             f'declares)')
     if head is None or head.height <= 1:
         return pts, None
     w, h = head.width, head.height
     image = None
     if pcd.has_colors():
-        image = np.clip(np.asarray(pcd.colors) * 255.0 + 0.5, 0, 255).astype(np.uint8).reshape(h, w, 3)
+        image = (np.clip(np.asarray(pcd.colors) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+                 .reshape(h, w, 3))
     return pts.reshape(h, w, 3), image

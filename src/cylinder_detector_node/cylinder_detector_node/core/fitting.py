@@ -16,7 +16,14 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .accumulator import TABLE_4_1, OrientationGMM, sample_gmm_directions, uniform_directions, vote_normals, votes_f32
+from .accumulator import (
+    TABLE_4_1,
+    OrientationGMM,
+    sample_gmm_directions,
+    uniform_directions,
+    vote_normals,
+    votes_f32,
+)
 from .geometry import normals_and_curvature, pca_normals
 
 Array = NDArray[np.float64]
@@ -25,9 +32,11 @@ METHODS = ('ours', 'rabbani')
 
 @dataclass(frozen=True)
 class FitParams:
-    """Parameters of the fit. Defaults follow the authors' tabletop settings where the thesis is silent."""
+    """Parameters of the fit. Defaults follow the authors' tabletop settings where the thesis is
+    silent."""
 
-    method: str = 'ours'                 #: 'ours' (GMM accumulator, Eq. 4.3) or 'rabbani' (uniform, normals only)
+    #: 'ours' (GMM accumulator, Eq. 4.3) or 'rabbani' (uniform, normals only)
+    method: str = 'ours'
     n_directions: int = 450              #: N_d (section 4.4.1)
     gmm: OrientationGMM = TABLE_4_1['unbiased']
     k_neighbours: int = 15               #: PCA neighbourhood size
@@ -36,7 +45,8 @@ class FitParams:
     radius_bins: int = 16
     position_bins: int = 40              #: per axis of the projected plane
     circle_samples: int = 24             #: centres each point votes for, per radius
-    inlier_distance: float = 0.15        #: |dist to axis - r| below this fraction of r (plus noise floor) is an inlier
+    #: |dist to axis - r| below this fraction of r (plus noise floor) is an inlier
+    inlier_distance: float = 0.15
     inlier_floor: float = 0.003          #: m, absolute inlier tolerance added to the relative one
     min_points: int = 20                 #: clusters with fewer points are not fitted
     max_points: int = 600                #: larger clusters are randomly subsampled to this many
@@ -49,10 +59,13 @@ class FitParams:
     """Exponent on each Eq. 4.3 vote (1 = as printed); > 1 concentrates votes on the cell each point
     supports, so cap rims (locally cylinders along the rim tangent) spread over the equator instead
     of outvoting the side."""
-    normal_axis_max_dot: float = 0.5     #: stage 2 keeps points with |n . axis| below this (as the authors' code)
-    coarse_points: int = 100             #: ours: points voting for every cell in the coarse pass (0 = one full pass)
+    #: stage 2 keeps points with |n . axis| below this (as the authors' code)
+    normal_axis_max_dot: float = 0.5
+    #: ours: points voting for every cell in the coarse pass (0 = one full pass)
+    coarse_points: int = 100
     candidates: int = 16                 #: ours: best coarse cells re-voted by all points
-    retry_peaks: int = 8                 #: ours: when the fit's Eq. 4.4 is below retry_below, try this many more peaks
+    #: ours: when the fit's Eq. 4.4 is below retry_below, try this many more peaks
+    retry_peaks: int = 8
     retry_below: float = 0.5
     retry_separation_deg: float = 45.0   #: the retried peaks are this far apart (as axes)
     seed: int = 0                        #: seeds the GMM accumulator
@@ -80,6 +93,12 @@ class FitParams:
             raise ValueError('FitParams: ' + '; '.join(problems))
 
 
+def vec3(v: Array) -> tuple[float, float, float]:
+    """A 3-vector as a tuple of 3 floats (Cylinder's centre and axis)."""
+    x, y, z = map(float, v)
+    return x, y, z
+
+
 @dataclass(frozen=True)
 class Cylinder:
     """A fitted cylinder: centre (m), unit axis, radius (m), height (m), confidence (Eq. 4.4)."""
@@ -97,15 +116,18 @@ class Cylinder:
 
 
 def make_directions(params: FitParams) -> Array:
-    """The orientation accumulator D for these parameters (Eq. 4.1-4.2, or uniform for the baseline)."""
+    """The orientation accumulator D for these parameters (Eq. 4.1-4.2, or uniform for the
+    baseline)."""
     if params.method == 'rabbani':
         return uniform_directions(params.n_directions)
-    return sample_gmm_directions(params.gmm, params.n_directions, np.random.default_rng(params.seed))
+    return sample_gmm_directions(params.gmm, params.n_directions,
+                                 np.random.default_rng(params.seed))
 
 
 def curvature_weights(k_max: Array, fraction: float | None) -> Array:
-    """The k_max factor of Eq. 4.3 as a saturating high-pass: min(k_max / k_sat, 1), k_sat = fraction
-    x the cluster's 90th-percentile k_max (scale-free: k_max depends on neighbourhood size / radius)."""
+    """The k_max factor of Eq. 4.3 as a saturating high-pass: min(k_max / k_sat, 1), k_sat =
+    fraction x the cluster's 90th-percentile k_max (scale-free: k_max depends on neighbourhood
+    size / radius)."""
     if fraction is None or len(k_max) == 0:
         return k_max
     # the 90th percentile (np.quantile's linear interpolation) from a partial sort: quantile's
@@ -168,18 +190,20 @@ def estimate_axis(normals: Array, c_max: Array, k_max: Array, directions: Array,
                   saturation: float | None = 0.05, sharpness: float = 1.0, coarse_points: int = 0,
                   candidates: int = 0) -> Array:
     """Stage 1: the unit direction of the accumulator cell with most votes (see axis_votes)."""
-    best, _ = axis_votes(normals, c_max, k_max, directions, method, saturation, sharpness, coarse_points,
-                         candidates)
+    best, _ = axis_votes(normals, c_max, k_max, directions, method, saturation, sharpness,
+                         coarse_points, candidates)
     d = directions[best]
     return d / np.linalg.norm(d)
 
 
-def separated_peaks(directions: Array, votes: Array, first: int, n: int, min_angle_deg: float) -> list[int]:
+def separated_peaks(directions: Array, votes: Array, first: int, n: int,
+                    min_angle_deg: float) -> list[int]:
     """Up to n cells after `first`, by decreasing votes, each at least min_angle_deg (as axes)
     from every cell already taken (greedy, on a precomputed closeness matrix)."""
     unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
     order = np.argsort(-votes, kind='stable')
-    close = np.abs(unit[order] @ unit.T) >= np.cos(np.radians(min_angle_deg))   # (cells by votes, cells)
+    # (cells by votes, cells)
+    close = np.abs(unit[order] @ unit.T) >= np.cos(np.radians(min_angle_deg))
     blocked = close[int(np.flatnonzero(order == first)[0])].copy()
     taken: list[int] = []
     for rank, i in enumerate(order):
@@ -220,8 +244,8 @@ def circle_hough(xy: Array, params: FitParams) -> tuple[Array, float]:
     iu = np.minimum((pu + du).astype(np.int32), nb - 1)                                # (N, R, T)
     iv = np.minimum((pv + dv).astype(np.int32), nb - 1)
     flat = (iu * nb + iv) * n_r + np.arange(n_r, dtype=np.int32)[None, :, None]
-    # about one vote per point per (cell, radius): a small circle's consecutive samples often share a
-    # cell and must not count twice (else small radii win)
+    # about one vote per point per (cell, radius): a small circle's consecutive samples often share
+    # a cell and must not count twice (else small radii win)
     keep = flat != np.roll(flat, 1, axis=2)
     acc = np.bincount(flat[keep], minlength=nb * nb * n_r)   # the vectorized np.add.at
     i, j, r = np.unravel_index(int(np.argmax(acc)), (nb, nb, n_r))
@@ -255,7 +279,8 @@ def fit_cylinder(points: Array, params: FitParams | None = None, directions: Arr
     if len(pts) < params.min_points:
         return None
     if len(pts) > params.max_points and features is None:
-        pts = pts[np.random.default_rng(params.seed).choice(len(pts), params.max_points, replace=False)]
+        pick = np.random.default_rng(params.seed).choice(len(pts), params.max_points, replace=False)
+        pts = pts[pick]
     if directions is None:
         directions = make_directions(params)
     if features is not None:
@@ -265,10 +290,12 @@ def fit_cylinder(points: Array, params: FitParams | None = None, directions: Arr
         c_max, k_max = normals, np.zeros(len(pts))
     else:
         normals, c_max, k_max = normals_and_curvature(pts, params.k_neighbours)
-    best, votes = axis_votes(normals, c_max, k_max, directions, params.method, params.curvature_saturation,
-                             params.vote_sharpness, params.coarse_points, params.candidates)
+    best, votes = axis_votes(normals, c_max, k_max, directions, params.method,
+                             params.curvature_saturation, params.vote_sharpness,
+                             params.coarse_points, params.candidates)
     fit = fit_with_axis(pts, normals, directions[best] / np.linalg.norm(directions[best]), params)
-    if params.method == 'ours' and params.retry_peaks > 0 and (fit is None or fit.confidence < params.retry_below):
+    if (params.method == 'ours' and params.retry_peaks > 0
+            and (fit is None or fit.confidence < params.retry_below)):
         # A weak fit: try the next well-separated accumulator peaks (short capped cylinders, whose
         # lid rims outvote the side, get their true axis back this way). Candidates are compared
         # by the curvature-weighted inlier fraction (the Eq. 4.3 weights: flat lid points count
@@ -278,7 +305,8 @@ def fit_cylinder(points: Array, params: FitParams | None = None, directions: Arr
         sub = slice(None, None, 3) if len(pts) >= 3 * params.min_points else slice(None)
         best_score = -1.0 if fit is None else weighted_inliers(pts, w, fit, params)
         best_axis = None
-        for i in separated_peaks(directions, votes, best, params.retry_peaks, params.retry_separation_deg):
+        for i in separated_peaks(directions, votes, best, params.retry_peaks,
+                                 params.retry_separation_deg):
             axis = directions[i] / np.linalg.norm(directions[i])
             other = fit_with_axis(pts[sub], normals[sub], axis, params)
             score = -1.0 if other is None else weighted_inliers(pts[sub], w[sub], other, params)
@@ -305,7 +333,8 @@ def weighted_inliers(pts: Array, weights: Array, cyl: Cylinder, params: FitParam
 
 def fit_with_axis(pts: Array, normals: Array, axis: Array, params: FitParams) -> Cylinder | None:
     """Stage 2 for a given axis: circle Hough on the side points projected along it, least-squares
-    refinement, height from the inliers, confidence N_model / N_cluster (Eq. 4.4, not thresholded)."""
+    refinement, height from the inliers, confidence N_model / N_cluster (Eq. 4.4, not
+    thresholded)."""
     rot = rotation_to_z(axis)
     q = pts @ rot.T
     side = np.abs(normals @ axis) < params.normal_axis_max_dot
@@ -326,5 +355,5 @@ def fit_with_axis(pts: Array, normals: Array, axis: Array, params: FitParams) ->
     z = q[inl, 2]
     z0, z1 = float(z.min()), float(z.max())
     centre = rot.T @ np.array([centre_xy[0], centre_xy[1], 0.5 * (z0 + z1)])
-    return Cylinder(tuple(map(float, centre)), tuple(map(float, axis)), float(radius), z1 - z0,
+    return Cylinder(vec3(centre), vec3(axis), float(radius), z1 - z0,
                     float(n_in / len(pts)), n_in, len(pts))

@@ -20,9 +20,11 @@ def neighbourhood_pca(points: Array, k: int = 15) -> tuple[Array, NDArray[np.int
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     kk = int(min(max(k, 3), len(pts)))
     _, idx = cKDTree(pts).query(pts, k=kk)
-    nb = np.take(pts, idx, axis=0)                           # (N, k, 3); take is ~3x faster than pts[idx]
+    # (N, k, 3); take is ~3x faster than pts[idx]
+    nb = np.take(pts, idx, axis=0)
     centred = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.matmul(centred.transpose(0, 2, 1), centred)     # (N, 3, 3); the 1/k scale is irrelevant
+    # (N, 3, 3); the 1/k scale is irrelevant
+    cov = np.matmul(centred.transpose(0, 2, 1), centred)
     _, vec = np.linalg.eigh(cov)
     return vec, idx
 
@@ -77,14 +79,16 @@ def frame_curvature(frames: Array, idx: NDArray[np.intp]) -> tuple[Array, Array]
     """
     k = idx.shape[1]
     nt, ut, vt = frames
-    g = np.take(nt, idx.T, axis=1)                           # (3, k, N): neighbours' normal components
+    # (3, k, N): neighbours' normal components
+    g = np.take(nt, idx.T, axis=1)
     tmp = np.empty(idx.T.shape)
     dn = g[0] * nt[0]                                        # n^s . n^j: the flips
     dn += np.multiply(g[1], nt[1], out=tmp)
     dn += np.multiply(g[2], nt[2], out=tmp)
     w = np.empty((5, *tmp.shape))                            # pu, pv, pu^2, pv^2, pu pv
     pu, pv = w[0], w[1]
-    np.multiply(g[0], ut[0], out=pu)                         # tangent coordinates of the neighbours' normals
+    # tangent coordinates of the neighbours' normals
+    np.multiply(g[0], ut[0], out=pu)
     pu += np.multiply(g[1], ut[1], out=tmp)
     pu += np.multiply(g[2], ut[2], out=tmp)
     np.multiply(g[0], vt[0], out=pv)
@@ -93,11 +97,14 @@ def frame_curvature(frames: Array, idx: NDArray[np.intp]) -> tuple[Array, Array]
     np.multiply(pu, pu, out=w[2])                            # squares and product: the flip cancels
     np.multiply(pv, pv, out=w[3])
     np.multiply(pu, pv, out=w[4])
-    flip = np.copysign(1.0, dn + 0.0)                        # -1 where dn < 0 (+ 0.0 turns -0.0 into 0.0)
-    pu *= flip                                               # flip neighbours' normals to agree with n^s
+    # -1 where dn < 0 (+ 0.0 turns -0.0 into 0.0)
+    flip = np.copysign(1.0, dn + 0.0)
+    # flip neighbours' normals to agree with n^s
+    pu *= flip
     pv *= flip
     mu, mv, suu, svv, suv = np.full(k, 1.0 / k) @ w          # neighbour means (5, N)
-    a, c, b = suu - mu * mu, svv - mv * mv, suv - mu * mv    # covariance [[a, b], [b, c]] of the tangent coordinates
+    # covariance [[a, b], [b, c]] of the tangent coordinates
+    a, c, b = suu - mu * mu, svv - mv * mv, suv - mu * mv
     half = 0.5 * (a - c)
     r = np.sqrt(half * half + b * b)
     k_max = 0.5 * (a + c) + r                                # its largest eigenvalue

@@ -9,7 +9,7 @@ the colours.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -33,8 +33,10 @@ def intrinsics_from_organized(points: np.ndarray) -> np.ndarray | None:
         return None
     xz = points[..., 0][ok] / z[ok]
     yz = points[..., 1][ok] / z[ok]
-    (fx, cx), *_ = np.linalg.lstsq(np.stack([xz, np.ones_like(xz)], 1), u[ok].astype(float), rcond=None)
-    (fy, cy), *_ = np.linalg.lstsq(np.stack([yz, np.ones_like(yz)], 1), v[ok].astype(float), rcond=None)
+    (fx, cx), *_ = np.linalg.lstsq(np.stack([xz, np.ones_like(xz)], 1), u[ok].astype(float),
+                                   rcond=None)
+    (fy, cy), *_ = np.linalg.lstsq(np.stack([yz, np.ones_like(yz)], 1), v[ok].astype(float),
+                                   rcond=None)
     if not (np.isfinite([fx, fy, cx, cy]).all() and fx > 0 and fy > 0):
         return None
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
@@ -81,7 +83,8 @@ def draw_cylinders(image: np.ndarray, k: np.ndarray, cylinders: Sequence[Cylinde
         if np.isfinite(ub).all() and np.isfinite(ut).all():
             side = np.argsort(ub[:, 0])
             for i in (side[0], side[-1]):
-                cv2.line(out, tuple(np.round(ub[i]).astype(int)), tuple(np.round(ut[i]).astype(int)),
+                cv2.line(out, tuple(np.round(ub[i]).astype(int)),
+                         tuple(np.round(ut[i]).astype(int)),
                          CYLINDER_COLOUR, thick)
         ends = project(np.array([bottom.mean(0), top.mean(0)]), k)
         if np.isfinite(ends).all():
@@ -97,7 +100,8 @@ def draw_cylinders(image: np.ndarray, k: np.ndarray, cylinders: Sequence[Cylinde
 
 def _legend(out: np.ndarray, s: float, thick: int) -> None:
     line_h = int(round(18 * s)) + 4
-    box_w = max(cv2.getTextSize(t, FONT, 0.45 * s, 1)[0][0] for _, t in LEGEND) + int(round(30 * s)) + 8
+    box_w = (max(cv2.getTextSize(t, FONT, 0.45 * s, 1)[0][0] for _, t in LEGEND)
+             + int(round(30 * s)) + 8)
     box_h = line_h * len(LEGEND) + 6
     region = out[:box_h, :box_w]
     region[:] = (region * 0.35).astype(out.dtype)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .fitting import Cylinder, FitParams, fit_cylinder, make_directions, rotation_to_z
+from .fitting import Cylinder, FitParams, fit_cylinder, make_directions, rotation_to_z, vec3
 from .segmentation import Cluster, SegmentParams, segment_tabletop
 
 Array = NDArray[np.float64]
@@ -28,21 +28,28 @@ Array = NDArray[np.float64]
 class Detection:
     cylinders: list[Cylinder] = field(default_factory=list)
     clusters: list[Cluster] = field(default_factory=list)       #: the cluster of each cylinder
-    probabilities: list[float | None] = field(default_factory=list)  #: classifier P(cylinder) of each (None: not classified)
-    rejected: int = 0                                            #: clusters below the Eq. 4.4 threshold
-    rejected_by_classifier: int = 0                              #: clusters the classifier rejected (not fitted)
+    #: classifier P(cylinder) of each (None: not classified)
+    probabilities: list[float | None] = field(default_factory=list)
+    #: clusters below the Eq. 4.4 threshold
+    rejected: int = 0
+    #: clusters the classifier rejected (not fitted)
+    rejected_by_classifier: int = 0
     n_clusters: int = 0                                          #: clusters out of the segmentation
     plane: Array | None = None
     messages: list[str] = field(default_factory=list)
-    timings_ms: dict[str, float] = field(default_factory=dict)   #: segmentation, classification, identification (wall)
-    cpu_ms: dict[str, float] = field(default_factory=dict)       #: the same stages in process CPU time
+    #: segmentation, classification, identification (wall)
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    #: the same stages in process CPU time
+    cpu_ms: dict[str, float] = field(default_factory=dict)
     #: process CPU time of each step: downsample, plane, clusters (the segmentation), classification
     #: (0 when no classifier ran), fitting, total
     stage_cpu_ms: dict[str, float] = field(default_factory=dict)
     stage_wall_ms: dict[str, float] = field(default_factory=dict)   #: the same steps, wall clock
-    planes: list[dict[str, Any]] = field(default_factory=list)   #: the segmentation's candidate planes
+    #: the segmentation's candidate planes
+    planes: list[dict[str, Any]] = field(default_factory=list)
     all_clusters: list[Cluster] = field(default_factory=list)    #: every segmented cluster
-    cluster_probabilities: list[float | None] = field(default_factory=list)   #: P(cylinder) of each of all_clusters
+    #: P(cylinder) of each of all_clusters
+    cluster_probabilities: list[float | None] = field(default_factory=list)
 
 
 def image_problem(image: Any, cloud_shape: tuple[int, ...]) -> str | None:
@@ -53,7 +60,8 @@ def image_problem(image: Any, cloud_shape: tuple[int, ...]) -> str | None:
     if len(cloud_shape) != 3:
         return 'the cloud is not organized (H x W): its clusters have no image patches'
     if img.shape[:2] != tuple(cloud_shape[:2]):
-        return (f'image {img.shape[1]}x{img.shape[0]} does not match the {cloud_shape[1]}x{cloud_shape[0]} '
+        return (f'image {img.shape[1]}x{img.shape[0]} does not match the '
+                f'{cloud_shape[1]}x{cloud_shape[0]} '
                 f'cloud (width x height)')
     return None
 
@@ -68,7 +76,8 @@ def _totals(out: Detection, t0: float, c0: float) -> None:
 
 def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitParams | None = None,
                      intrinsics: tuple[float, float, float, float] | None = None,
-                     image_size: tuple[int, int] = (640, 480), image: NDArray[np.uint8] | None = None,
+                     image_size: tuple[int, int] = (640, 480),
+                     image: NDArray[np.uint8] | None = None,
                      classifier: Any = None, classifier_threshold: float = 0.5) -> Detection:
     """Tabletop segmentation (4.3.1), pre-attention on each cluster's patch of image (RGB, same
     size as the organized cloud) when a classifier (core.classifier.PatchClassifier) is given
@@ -91,24 +100,27 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
         else:
             idx = [i for i, cl in enumerate(s.clusters) if cl.patch is not None]
             p = classifier.classify(np.asarray(image), [s.clusters[i].patch for i in idx])
-            for i, v in zip(idx, p):
+            for i, v in zip(idx, p, strict=True):
                 probs[i] = float(v)
     out.cluster_probabilities = probs
     t2, c2 = time.perf_counter(), time.process_time()
-    out.timings_ms['classification'], out.cpu_ms['classification'] = 1e3 * (t2 - t1), 1e3 * (c2 - c1)
-    out.stage_wall_ms['classification'], out.stage_cpu_ms['classification'] = 1e3 * (t2 - t1), 1e3 * (c2 - c1)
+    out.timings_ms['classification'], out.cpu_ms['classification'] = (
+        1e3 * (t2 - t1), 1e3 * (c2 - c1))
+    out.stage_wall_ms['classification'], out.stage_cpu_ms['classification'] = (
+        1e3 * (t2 - t1), 1e3 * (c2 - c1))
     if s.plane is None or not s.clusters:
         out.timings_ms['identification'] = out.cpu_ms['identification'] = 0.0
         _totals(out, t0, c0)
         return out
     rot = rotation_to_z(s.plane[:3])          # cloud frame -> table frame (normal to +z)
     directions = make_directions(fit)
-    for cl, prob in zip(s.clusters, probs):
+    for cl, prob in zip(s.clusters, probs, strict=True):
         if prob is not None and prob < classifier_threshold:
             out.rejected_by_classifier += 1
             continue
         if len(cl.points) < fit.min_points:
-            out.messages.append(f'cluster of {len(cl.points)} points is too small to fit (min_points={fit.min_points})')
+            out.messages.append(f'cluster of {len(cl.points)} points is too small to fit '
+                                f'(min_points={fit.min_points})')
             continue
         c = fit_cylinder(cl.points @ rot.T, fit, directions)
         if c is None:
@@ -118,7 +130,7 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
         axis = rot.T @ np.array(c.axis)
         if axis @ s.plane[:3] < 0:
             axis = -axis
-        out.cylinders.append(Cylinder(tuple(map(float, centre)), tuple(map(float, axis)), c.radius, c.height,
+        out.cylinders.append(Cylinder(vec3(centre), vec3(axis), c.radius, c.height,
                                       c.confidence, c.n_inliers, c.n_points))
         out.clusters.append(cl)
         out.probabilities.append(prob)
@@ -129,5 +141,6 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
         out.messages.append(f'{out.rejected_by_classifier} cluster(s) below classifier probability '
                             f'{classifier_threshold}: not cylinders (not fitted)')
     if out.rejected:
-        out.messages.append(f'{out.rejected} cluster(s) below confidence {fit.min_confidence} (Eq. 4.4): not cylinders')
+        out.messages.append(f'{out.rejected} cluster(s) below confidence {fit.min_confidence} '
+                            f'(Eq. 4.4): not cylinders')
     return out

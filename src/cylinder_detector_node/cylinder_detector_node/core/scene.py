@@ -20,30 +20,39 @@ class TabletopScene:
     intrinsics: tuple[float, float, float, float]
     up: Array | None = None           #: against gravity, camera frame (make_room)
     table_height: float | None = None  #: m, the table top below the camera (make_room)
-    clutter: list[Array] = field(default_factory=list)  #: make_room: centres of the floor clutter, camera frame
+    #: make_room: centres of the floor clutter, camera frame
+    clutter: list[Array] = field(default_factory=list)
+
+
+def _moved(mesh: o3d.geometry.TriangleMesh, offset: tuple[float, ...]) -> o3d.geometry.TriangleMesh:
+    """mesh translated by offset, in place (Open3D's stubs type translate() as Geometry3D)."""
+    mesh.translate(offset)
+    return mesh
 
 
 def make_tabletop(rng: np.random.Generator, n_cylinders: int = 3, n_distractors: int = 8,
                   width: int = 640, height: int = 480, noise_std: float = 0.001) -> TabletopScene:
     """A 1.2 x 0.8 m table seen from 0.6 m above and 0.5 m back (camera looking down 50 degrees),
     with upright cylinders (r 3-5 cm, h 8-20 cm) and boxes/spheres as distractors, on a grid."""
-    meshes = []
-    table = o3d.geometry.TriangleMesh.create_box(1.2, 0.8, 0.02).translate((-0.6, -0.4, -0.02))
+    meshes: list[o3d.geometry.TriangleMesh] = []
+    table = _moved(o3d.geometry.TriangleMesh.create_box(1.2, 0.8, 0.02), (-0.6, -0.4, -0.02))
     meshes.append(table)
-    slots = np.array([(x, y) for x in np.linspace(-0.45, 0.45, 5) for y in np.linspace(-0.25, 0.25, 3)])
+    slots = np.array([(x, y) for x in np.linspace(-0.45, 0.45, 5)
+                      for y in np.linspace(-0.25, 0.25, 3)])
     slots = slots[rng.permutation(len(slots))[: n_cylinders + n_distractors]]
     cyls = []
     for k, (x, y) in enumerate(slots):
         if k < n_cylinders:
             r, h = rng.uniform(0.03, 0.05), rng.uniform(0.08, 0.2)
-            m = o3d.geometry.TriangleMesh.create_cylinder(r, h, resolution=64).translate((x, y, h / 2))
+            m = _moved(o3d.geometry.TriangleMesh.create_cylinder(r, h, resolution=64),
+                       (x, y, h / 2))
             cyls.append((np.array([x, y, 0.0]), r, h))
         elif k % 2:
             s = rng.uniform(0.04, 0.1, 3)
-            m = o3d.geometry.TriangleMesh.create_box(*s).translate((x - s[0] / 2, y - s[1] / 2, 0))
+            m = _moved(o3d.geometry.TriangleMesh.create_box(*s), (x - s[0] / 2, y - s[1] / 2, 0))
         else:
             r = rng.uniform(0.03, 0.05)
-            m = o3d.geometry.TriangleMesh.create_sphere(r).translate((x, y, r))
+            m = _moved(o3d.geometry.TriangleMesh.create_sphere(r), (x, y, r))
         meshes.append(m)
     # camera: at (0, -0.5, 0.6) in the table frame, looking at the table centre
     eye = np.array([0.0, -0.55, 0.6])
@@ -52,8 +61,8 @@ def make_tabletop(rng: np.random.Generator, n_cylinders: int = 3, n_distractors:
     return TabletopScene(cloud, cyl_cam, INTRINSICS)
 
 
-def _render(meshes: list[o3d.geometry.TriangleMesh], eye: Array, target: Array, width: int, height: int,
-            noise_std: float, rng: np.random.Generator,
+def _render(meshes: list[o3d.geometry.TriangleMesh], eye: Array, target: Array, width: int,
+            height: int, noise_std: float, rng: np.random.Generator,
             intrinsics: tuple[float, float, float, float] = INTRINSICS) -> tuple[Array, Array]:
     """(organized cloud in the camera optical frame, world -> camera rotation) of meshes seen from
     eye looking at target (world z up, no roll), with depth noise noise_std * z^2."""
@@ -69,8 +78,11 @@ def _render(meshes: list[o3d.geometry.TriangleMesh], eye: Array, target: Array, 
     for m in meshes:
         scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(m))
     fx, fy, cx, cy = intrinsics
-    k_mat = o3d.core.Tensor([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=o3d.core.Dtype.Float64)
-    rays = scene.create_rays_pinhole(k_mat, o3d.core.Tensor(ext), width, height)
+    # open3d's stubs make Tensor's dtype and device required; they default to (inferred, CPU:0)
+    k_mat = o3d.core.Tensor([[fx, 0, cx], [0, fy, cy], [0, 0, 1]],  # type: ignore[call-overload]
+                            dtype=o3d.core.Dtype.Float64)
+    rays = scene.create_rays_pinhole(k_mat, o3d.core.Tensor(ext),  # type: ignore[call-overload]
+                                     width, height)
     t = scene.cast_rays(rays)['t_hit'].numpy()
     d = rays.numpy()[..., 3:]
     hit = np.isfinite(t)
@@ -81,13 +93,15 @@ def _render(meshes: list[o3d.geometry.TriangleMesh], eye: Array, target: Array, 
     return cloud, r_ct
 
 
-def _box(lo: tuple[float, float, float], hi: tuple[float, float, float]) -> o3d.geometry.TriangleMesh:
+def _box(lo: tuple[float, float, float],
+         hi: tuple[float, float, float]) -> o3d.geometry.TriangleMesh:
     size = np.subtract(hi, lo)
-    return o3d.geometry.TriangleMesh.create_box(*size).translate(lo)
+    return _moved(o3d.geometry.TriangleMesh.create_box(*size), lo)
 
 
-def make_room(rng: np.random.Generator, width: int = 640, height: int = 480, noise_std: float = 0.001,
-              camera_height: float = 1.25, wall_distance: float = 2.0) -> TabletopScene:
+def make_room(rng: np.random.Generator, width: int = 640, height: int = 480,
+              noise_std: float = 0.001, camera_height: float = 1.25,
+              wall_distance: float = 2.0) -> TabletopScene:
     """A room as a stereo head or RGB-D camera sees a table in it: a 1.2 x 0.8 m table (top 0.72 m
     above the floor, four legs) with an upright mug (r 4 cm, h 10 cm), an upright bottle (r 3.5 cm,
     h 22 cm) and a box on it; the floor around it; a back wall wall_distance (m) beyond the camera,
@@ -107,12 +121,15 @@ def make_room(rng: np.random.Generator, width: int = 640, height: int = 480, noi
     cyls = []
     for (x, y), r, h in (((-0.2 + j(0.02), 0.8 + j(0.02)), 0.04 + j(0.003), 0.10 + j(0.01)),
                          ((0.2 + j(0.02), 0.95 + j(0.02)), 0.035 + j(0.003), 0.22 + j(0.01))):
-        m = o3d.geometry.TriangleMesh.create_cylinder(r, h, resolution=64).translate((x, y, top + h / 2))
+        m = _moved(o3d.geometry.TriangleMesh.create_cylinder(r, h, resolution=64),
+                   (x, y, top + h / 2))
         meshes.append(m)
         cyls.append((np.array([x, y, top]), r, h))
-    meshes.append(_box((-0.05, 1.05, top), (0.05, 1.15, top + 0.08)))                 # a box on the table
+    # a box on the table
+    meshes.append(_box((-0.05, 1.05, top), (0.05, 1.15, top + 0.08)))
     bin_c = np.array([-0.9 + j(0.05), wall_distance - 0.25, 0.175])
-    meshes.append(o3d.geometry.TriangleMesh.create_cylinder(0.12, 0.35, resolution=64).translate(tuple(bin_c)))
+    meshes.append(_moved(o3d.geometry.TriangleMesh.create_cylinder(0.12, 0.35, resolution=64),
+                         tuple(bin_c)))
     box_c = np.array([0.9 + j(0.05), wall_distance - 0.3, 0.15])
     meshes.append(_box(tuple(box_c - 0.15), tuple(box_c + 0.15)))
     eye = np.array([0.0, -0.1, camera_height])

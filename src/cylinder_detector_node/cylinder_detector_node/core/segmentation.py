@@ -65,16 +65,21 @@ class SegmentParams:
     plane_distance: float = 0.01         #: m, RANSAC inlier distance
     ransac_iterations: int = 500
     ransac_probability: float = 0.999    #: RANSAC stops early once this sure of its plane (Open3D)
-    grid_stride: int = 2                 #: organized clouds: pixel stride of the cloud that is downsampled
+    #: organized clouds: pixel stride of the cloud that is downsampled
+    grid_stride: int = 2
     min_plane_points: int = 200          #: a plane with fewer (downsampled) inliers is "no table"
     min_height: float = 0.01             #: m above the plane for an object point
     max_height: float = 0.5              #: m above the plane
     cluster_eps: float = 0.02            #: m, DBSCAN neighbourhood (Euclidean clustering tolerance)
     min_cluster_points: int = 30         #: downsampled points; smaller clusters are dropped
-    max_table_gap: float = 0.05          #: m, a cluster's centre projected on the plane must be this close to a table point
-    max_range: float | None = None       #: m from the sensor; farther points are ignored (None: all)
-    max_planes: int = 6                  #: planes RANSAC extracts (largest first) as table candidates
-    up: tuple[float, float, float] | None = CAMERA_UP  #: against gravity, cloud frame; None: any plane
+    #: m, a cluster's centre projected on the plane must be this close to a table point
+    max_table_gap: float = 0.05
+    #: m from the sensor; farther points are ignored (None: all)
+    max_range: float | None = None
+    #: planes RANSAC extracts (largest first) as table candidates
+    max_planes: int = 6
+    #: against gravity, cloud frame; None: any plane
+    up: tuple[float, float, float] | None = CAMERA_UP
     up_tolerance_deg: float = 60.0       #: largest angle between the table's normal and up
     seed: int = 0
 
@@ -94,8 +99,10 @@ class Cluster:
     points: Array                                   #: (N, 3) full-resolution points of the object
     box_min: Array
     box_max: Array
-    patch: tuple[int, int, int, int] | None = None  #: (u0, v0, u1, v1) image box, or None without intrinsics
-    pixels: NDArray[np.int64] | None = None          #: flat pixel index of each point (organized clouds)
+    #: (u0, v0, u1, v1) image box, or None without intrinsics
+    patch: tuple[int, int, int, int] | None = None
+    #: flat pixel index of each point (organized clouds)
+    pixels: NDArray[np.int64] | None = None
 
 
 @dataclass
@@ -103,8 +110,10 @@ class Segmentation:
     plane: Array | None = None                      #: (a, b, c, d), normal towards the camera
     clusters: list[Cluster] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
-    planes: list[dict[str, Any]] = field(default_factory=list)   #: every RANSAC plane and what became of it
-    cpu_ms: dict[str, float] = field(default_factory=dict)       #: downsample, plane, clusters (process CPU)
+    #: every RANSAC plane and what became of it
+    planes: list[dict[str, Any]] = field(default_factory=list)
+    #: downsample, plane, clusters (process CPU)
+    cpu_ms: dict[str, float] = field(default_factory=dict)
     wall_ms: dict[str, float] = field(default_factory=dict)      #: the same stages, wall clock
 
 
@@ -116,9 +125,11 @@ def finite_points(points: Array) -> Array:
 def project_box(box_min: Array, box_max: Array, intrinsics: tuple[float, float, float, float],
                 size: tuple[int, int]) -> tuple[int, int, int, int] | None:
     """The image rectangle (u0, v0, u1, v1) covering a 3D box's 8 corners (camera optical frame,
-    z forward), clipped to size = (width, height); None if it lies behind the camera or off-image."""
+    z forward), clipped to size = (width, height); None if it lies behind the camera or
+    off-image."""
     fx, fy, cx, cy = intrinsics
-    corners = np.array(np.meshgrid(*zip(box_min, box_max), indexing='ij')).reshape(3, -1).T
+    corners = np.array(np.meshgrid(*zip(box_min, box_max, strict=True), indexing='ij'))
+    corners = corners.reshape(3, -1).T
     corners = corners[corners[:, 2] > 1e-6]
     if len(corners) == 0:
         return None
@@ -158,8 +169,9 @@ class _Candidate:
     on: NDArray[np.bool_]        #: inliers among the downsampled points
     up_cos: float | None         #: cos(normal, up), None without up
     info: dict[str, Any]         #: what Segmentation.planes reports of it
-    region: NDArray[np.bool_]    #: the inliers that hold objects up: its surface and next to it (_region)
-    objects: '_Objects | None' = None
+    #: the inliers that hold objects up: its surface and next to it (_region)
+    region: NDArray[np.bool_]
+    objects: _Objects | None = None
 
     @property
     def size(self) -> int:
@@ -190,8 +202,10 @@ def _region(plane: Array, on: NDArray[np.bool_], dpts: Array,
         return surface, support
     uv = dpts[idx] @ _plane_frame(plane[:3]).T
     lo = uv.min(axis=0)
-    cell = max(2.0 * params.voxel_size, float((uv.max(axis=0) - lo).max()) / 1000.0)  # at most 1000^2 cells
-    ij = ((uv - lo) / cell).astype(np.int64) + 2                # a margin of 2 cells for the closing
+    # at most 1000^2 cells
+    cell = max(2.0 * params.voxel_size, float((uv.max(axis=0) - lo).max()) / 1000.0)
+    # a margin of 2 cells for the closing
+    ij = ((uv - lo) / cell).astype(np.int64) + 2
     grid = np.zeros(ij.max(axis=0) + 3, dtype=bool)
     grid[ij[:, 0], ij[:, 1]] = True
     square = np.ones((3, 3), dtype=bool)
@@ -204,7 +218,8 @@ def _region(plane: Array, on: NDArray[np.bool_], dpts: Array,
 
 def _objects_on(dpts: Array, cand: _Candidate, params: SegmentParams) -> _Objects:
     """The clusters between min_height and max_height above cand's plane, and those of them big
-    enough and standing on it (centre projected onto the plane within max_table_gap of its points)."""
+    enough and standing on it (centre projected onto the plane within max_table_gap of its
+    points)."""
     plane = cand.plane
     hd = dpts @ plane[:3] + plane[3]
     above = (hd > params.min_height) & (hd < params.max_height)
@@ -219,7 +234,8 @@ def _objects_on(dpts: Array, cand: _Candidate, params: SegmentParams) -> _Object
     above = np.flatnonzero(above)[inside]
     none = np.zeros(0, dtype=np.int64)
     if len(above) < params.min_cluster_points:
-        return _Objects(above, none, none, [f'no objects above the table plane ({len(above)} points)'])
+        return _Objects(above, none, none,
+                        [f'no objects above the table plane ({len(above)} points)'])
     obj = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(dpts[above]))
     labels = np.asarray(obj.cluster_dbscan(params.cluster_eps, params.min_cluster_points // 3 or 1),
                         dtype=np.int64)
@@ -235,7 +251,8 @@ def _objects_on(dpts: Array, cand: _Candidate, params: SegmentParams) -> _Object
     if len(keep) == 0:
         return _Objects(above, labels, none, messages)
     # objects stand on the table: the plane projection of each cluster's centre lies on table points
-    sums = np.stack([np.bincount(labels[good], weights=dpts[above][good][:, k], minlength=len(counts))
+    sums = np.stack([np.bincount(labels[good], weights=dpts[above][good][:, k],
+                                 minlength=len(counts))
                      for k in range(3)], axis=1)
     centres = sums[keep] / counts[keep, None]
     on_plane = centres - (centres @ plane[:3] + plane[3])[:, None] * plane[:3]
@@ -282,11 +299,12 @@ def _choose(cands: list[_Candidate], dpts: Array, params: SegmentParams) -> _Can
         min_cos = math.cos(math.radians(LEVEL_DEG))
         for c in cands:
             if c.plane[:3] @ level < min_cos:
-                c.info['verdict'] = (f'{math.degrees(math.acos(np.clip(c.plane[:3] @ level, -1, 1))):.0f} deg '
-                                     f'from the largest upward plane (not level)')
+                angle = math.degrees(math.acos(np.clip(c.plane[:3] @ level, -1, 1)))
+                c.info['verdict'] = f'{angle:.0f} deg from the largest upward plane (not level)'
         cands = [c for c in cands if c.plane[:3] @ level >= min_cos]
         order = []
-        for c in sorted(cands, key=lambda c: c.plane[3]):        # highest (nearest below the sensor) first
+        # highest (nearest below the sensor) first
+        for c in sorted(cands, key=lambda c: c.plane[3]):
             host = next((b for b in cands if _lies_on(c, b, dpts, params)), None)
             if host is not None:
                 c.info['verdict'] = (f'lies on the plane {host.info["height_m"]:.2f} m below the '
@@ -336,7 +354,8 @@ def segment_tabletop(points: Array, params: SegmentParams | None = None,
     return result
 
 
-def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, float, float, float] | None,
+def _segment(points: Array, params: SegmentParams,
+             intrinsics: tuple[float, float, float, float] | None,
              image_size: tuple[int, int], out: Segmentation, lap: Any) -> Segmentation:
     arr = np.asarray(points)
     if arr.dtype not in (np.float32, np.float64):
@@ -349,7 +368,8 @@ def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, floa
     # `grid_stride`-th pixel is plenty (1.7 mm pixel footprint at 1 m against 1 cm voxels) and
     # makes the copies, range test and voxel grid that much cheaper.
     coarse = arr[::params.grid_stride, ::params.grid_stride].reshape(-1, 3) if organized else flat
-    pts = coarse[np.isfinite(coarse.sum(axis=1))].astype(np.float64)   # any NaN/inf makes the sum non-finite
+    # any NaN/inf makes the sum non-finite
+    pts = coarse[np.isfinite(coarse.sum(axis=1))].astype(np.float64)
     if len(pts) == 0:
         out.messages.append('cloud has 0 finite points')
         lap('downsample')
@@ -360,7 +380,8 @@ def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, floa
             out.messages.append(f'no points within max_range {params.max_range} m')
             lap('downsample')
             return out
-    down = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts)).voxel_down_sample(params.voxel_size)
+    down = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+            .voxel_down_sample(params.voxel_size))
     # RANSAC runs on a 2x coarser voxel grid (a tenth of the time); each plane is then refitted by
     # least squares to its inliers on the voxel_size grid.
     rest = np.asarray(down.voxel_down_sample(2.0 * params.voxel_size).points)
@@ -371,7 +392,8 @@ def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, floa
         return out
     o3d.utility.random.seed(params.seed)
     dpts = np.asarray(down.points)
-    up = None if params.up is None else np.asarray(params.up, dtype=np.float64) / np.linalg.norm(params.up)
+    up = (None if params.up is None
+          else np.asarray(params.up, dtype=np.float64) / np.linalg.norm(params.up))
     min_cos = math.cos(math.radians(params.up_tolerance_deg))
     cands: list[_Candidate] = []
     largest = 0
@@ -398,7 +420,8 @@ def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, floa
         info: dict[str, Any] = {
             'points': n_on, 'normal': [round(float(v), 4) for v in plane[:3]],
             'height_m': round(float(plane[3]), 4),
-            'angle_to_up_deg': None if up_cos is None else round(math.degrees(math.acos(np.clip(up_cos, -1, 1))), 1)}
+            'angle_to_up_deg': (None if up_cos is None
+                                else round(math.degrees(math.acos(np.clip(up_cos, -1, 1))), 1))}
         out.planes.append(info)
         if up_cos is not None and up_cos < min_cos:
             info['verdict'] = ('above the sensor or facing away from it' if up_cos <= 0 else
@@ -412,14 +435,17 @@ def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, floa
         cands.append(_Candidate(plane, on, up_cos, info, region))
     if not cands:
         if not out.planes:
-            out.messages.append(f'no table plane: best plane has {largest} inliers, need {params.min_plane_points}')
+            out.messages.append(f'no table plane: best plane has {largest} inliers, '
+                                f'need {params.min_plane_points}')
         elif up is None or all('surface' in p.get('verdict', '') for p in out.planes):
             out.messages.append(f'no table plane: none of the {len(out.planes)} plane(s) of '
-                                f'{params.min_plane_points}+ points is a surface (scattered inliers)')
+                                f'{params.min_plane_points}+ points is a surface '
+                                f'(scattered inliers)')
         else:
             out.messages.append(f'no table plane: none of the {len(out.planes)} plane(s) of '
                                 f'{params.min_plane_points}+ points lies below the sensor within '
-                                f'{params.up_tolerance_deg:g} deg of up {tuple(round(float(v), 3) for v in up)} '
+                                f'{params.up_tolerance_deg:g} deg of up '
+                                f'{tuple(round(float(v), 3) for v in up)} '
                                 '(walls, ceiling; is up right?)')
         lap('plane')
         return out
@@ -453,6 +479,7 @@ def _segment(points: Array, params: SegmentParams, intrinsics: tuple[float, floa
         sel = full_labels == lab
         cp = full[sel]
         lo, hi = cp.min(axis=0), cp.max(axis=0)
+        patch: tuple[int, int, int, int] | None
         if organized:
             px = full_pix[sel]
             rows, cols = np.divmod(px, image_size[0])

@@ -37,10 +37,12 @@ def make_cylinder(rng: np.random.Generator, radius: float, height: float, n_surf
                   centre: Array | None = None) -> SyntheticCylinder:
     """Uniform points on a cylinder's side, plus planar caps (lids) holding cap_ratio * n_surface
     points split between top and bottom, plus isotropic Gaussian noise of std noise_std (m)."""
-    axis = np.array([0.0, 0.0, 1.0]) if axis is None else np.asarray(axis, float) / np.linalg.norm(axis)
+    axis = (np.array([0.0, 0.0, 1.0]) if axis is None
+            else np.asarray(axis, float) / np.linalg.norm(axis))
     centre = np.zeros(3) if centre is None else np.asarray(centre, float)
     th = rng.uniform(0, 2 * np.pi, n_surface)
-    side = np.column_stack([radius * np.cos(th), radius * np.sin(th), rng.uniform(-height / 2, height / 2, n_surface)])
+    side = np.column_stack([radius * np.cos(th), radius * np.sin(th),
+                            rng.uniform(-height / 2, height / 2, n_surface)])
     n_cap = int(round(cap_ratio * n_surface))
     rr = radius * np.sqrt(rng.uniform(0, 1, n_cap))
     tc = rng.uniform(0, 2 * np.pi, n_cap)
@@ -56,7 +58,7 @@ def make_cylinder(rng: np.random.Generator, radius: float, height: float, n_surf
 
 def axis_angle_deg(a: Array, b: Array) -> float:
     """Angle between two axes (orientation-free: 0..90 degrees)."""
-    c = abs(float(np.dot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b)))
+    c = float(abs(float(np.dot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b))))
     return float(np.degrees(np.arccos(min(1.0, c))))
 
 

@@ -37,7 +37,11 @@ import cv2
 import numpy as np
 
 from .image_checks import (
-    check_fixation, check_image, check_levels, check_positive, check_size,
+    check_fixation,
+    check_image,
+    check_levels,
+    check_positive,
+    check_size,
 )
 
 #: Smallest sigma_1 (px) the subsampled pyramid realises: pyrDown + pyrUp alone give variance
@@ -90,7 +94,7 @@ def gaussian_levels_reference(image: np.ndarray, sigma_1: float = PYRAMID_SIGMA_
     sigmas = gaussian_sigmas(sigma_1, levels)
     _check_levels_fit(width, height, levels)
     base = image.astype(np.float64)
-    out = [base]
+    out: list[np.ndarray] = [base]
     for sigma in sigmas[1:]:
         ksize = 2 * math.ceil(4.0 * sigma) + 1
         out.append(cv2.GaussianBlur(base, (ksize, ksize), sigma, sigmaY=sigma,
@@ -118,7 +122,7 @@ def foveate_reference(image: np.ndarray, fixation: Fixation, f0: float = DEFAULT
     f_ks = fovea_sigmas(f0, levels)
     laplacians, residual = laplacian_levels_reference(image, sigma_1, levels)
     out = residual.copy()
-    for lap, f_k in zip(laplacians, f_ks):
+    for lap, f_k in zip(laplacians, f_ks, strict=True):
         kernel = fovea_kernel(width, height, (u0, v0), float(f_k))
         out += lap * (kernel if lap.ndim == 2 else kernel[:, :, None])
     return out

@@ -154,7 +154,7 @@ def measured_information(image: np.ndarray, fixation: tuple[float, float], f0: f
     row = np.arange(width)[None, :]
     col = np.arange(height)[:, None]
     level_power, kept_power = [], []
-    for lap, f in zip(laplacians, f_k):
+    for lap, f in zip(laplacians, f_k, strict=True):
         h2 = np.exp(-((row - u0) ** 2 + (col - v0) ** 2) / f ** 2)  # H_k^2
         sq = lap ** 2 if lap.ndim == 2 else (lap ** 2).mean(axis=2)
         level_power.append(sq.mean())

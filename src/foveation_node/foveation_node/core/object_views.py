@@ -18,6 +18,7 @@ Needs mujoco and vizzy_sim_bridge (training, experiments, tests); the node does 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -138,7 +139,7 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+def _axis_angle(axis: np.ndarray | Sequence[float], angle: float) -> np.ndarray:
     a = np.asarray(axis, float) / np.linalg.norm(axis)
     k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
     return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
@@ -168,6 +169,7 @@ class ObjectViews:
 
     def __init__(self, width: int = 640, height: int = 480, seed: int = 0) -> None:
         import mujoco
+
         from vizzy_sim_bridge.core.camera import EYE_HFOV_DEG, camera_matrix
         from vizzy_sim_bridge.core.model import CameraSpec, compile_model
         from vizzy_sim_bridge.core.render import CameraRenderer
@@ -205,7 +207,7 @@ class ObjectViews:
     def close(self) -> None:
         self.renderer.close()
 
-    def __enter__(self) -> 'ObjectViews':
+    def __enter__(self) -> ObjectViews:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -240,6 +242,7 @@ class ObjectViews:
         border (or on `centre`), depth [m] along the optical axis uniform in `depth`.
         """
         import mujoco
+
         from vizzy_sim_bridge.core.scenes import geom_box_corners
 
         m, d = self.model, self.data

@@ -7,8 +7,8 @@ size of the full-resolution centre, Eq. 2.3), and a legend in the corner naming 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import cv2
 import numpy as np

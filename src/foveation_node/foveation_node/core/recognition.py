@@ -22,9 +22,9 @@ from __future__ import annotations
 import json
 import math
 import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -90,7 +90,7 @@ def load_preprocessing(path: str | Path | None) -> Preprocessing:
     if len(size) != 2 or min(size) < 8 or len(mean) != 3 or len(std) != 3 or min(std) <= 0:
         raise ModelError(f'preprocessing file {path}: need input_size [w >= 8, h >= 8], 3 means '
                          f'and 3 positive stds, got {raw}')
-    return Preprocessing(size, mean, std)  # type: ignore[arg-type]
+    return Preprocessing(size, mean, std)
 
 
 @dataclass(frozen=True)
@@ -212,6 +212,7 @@ class Classifier:
             scores = self.model(x)
             idx = torch.as_tensor(list(classes), dtype=torch.long)
             scores.gather(1, idx[:, None]).sum().backward()
+        assert x.grad is not None                                     # set by backward()
         grad = x.grad.abs().amax(dim=1)                               # (N, h, w)
         peak = grad.flatten(1).amax(dim=1).clamp_min(1e-12)
         return (grad / peak[:, None, None]).numpy()
@@ -288,7 +289,7 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     classes1 = [int(c) for c in np.argsort(-probs1)[:k]]
     boxes1 = localise(classifier, first_image, classes1, threshold)
     first = [Detection(c, classifier.labels[c], float(probs1[c]), b, fixation, 0)
-             for c, b in zip(classes1, boxes1)]
+             for c, b in zip(classes1, boxes1, strict=True)]
 
     centres = [d.centre for d in first]
     second_images = [foveate(image, c) for c in centres]
@@ -300,7 +301,7 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     else:
         boxes2 = [first[r].box for _, r, _ in chosen]
     second = [Detection(c, classifier.labels[c], s, b, centres[r], 1)
-              for (c, r, s), b in zip(chosen, boxes2)]
+              for (c, r, s), b in zip(chosen, boxes2, strict=True)]
     return TwoPassResult(first, second, probs1, probs2)
 
 

@@ -83,6 +83,7 @@ class TabletopViews:
 
     def _load(self, seed: int) -> None:
         import mujoco
+
         from vizzy_sim_bridge.core.camera import EYE_HFOV_DEG
         from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
         from vizzy_sim_bridge.core.render import CameraRenderer
@@ -113,7 +114,7 @@ class TabletopViews:
             self._renderer = None
         self._seed = None
 
-    def __enter__(self) -> 'TabletopViews':
+    def __enter__(self) -> TabletopViews:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -131,6 +132,7 @@ class TabletopViews:
         """tabletop(seed) from the left eye with the head at joints (JOINT_NAMES order, rad).
         RuntimeError if the scene builder cannot place the seed's objects."""
         import mujoco
+
         from vizzy_sim_bridge.core.scenes import geom_box_corners
 
         if self._seed != seed:
@@ -144,7 +146,7 @@ class TabletopViews:
         rot = d.cam_xmat[self._cam].reshape(3, 3).copy()
         w, h = self.width, self.height
         objects = []
-        for (label, name, geoms), body in zip(self._bodies, self._body_ids):
+        for (label, name, geoms), body in zip(self._bodies, self._body_ids, strict=True):
             (uv,), (z,) = self._project(d.xpos[body][None], pos, rot)
             if z <= 0.05 or not (0 <= uv[0] < w and 0 <= uv[1] < h):
                 continue

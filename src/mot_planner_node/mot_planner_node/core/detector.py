@@ -18,7 +18,7 @@ scale step 1.05): a sliding-window detector like the thesis's.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, cast, runtime_checkable
 
 import cv2
 import numpy as np
@@ -37,7 +37,7 @@ class Detections(NamedTuple):
     scores: FloatArray
 
     @staticmethod
-    def empty() -> 'Detections':
+    def empty() -> Detections:
         return Detections(np.zeros((0, 4)), np.zeros(0))
 
 
@@ -149,8 +149,8 @@ class HogDetector:
                  padding: int = 8, box_shrink: BoxShrink = HOG_SHRINK,
                  svm: NDArray[np.float32] | None = None) -> None:
         self.hog = cv2.HOGDescriptor()
-        self.hog.setSVMDetector(cv2.HOGDescriptor.getDefaultPeopleDetector() if svm is None
-                                else np.asarray(svm, dtype=np.float32))
+        self.hog.setSVMDetector(np.asarray(cv2.HOGDescriptor.getDefaultPeopleDetector()
+                                           if svm is None else svm, dtype=np.float32))
         block_stride = self.hog.blockStride[0]
         if win_stride <= 0 or win_stride % block_stride:
             raise ValueError(f'win_stride must be a positive multiple of the block stride '
@@ -200,7 +200,8 @@ class HogDetector:
             s_lo = max(float(reg[S_LO]) if np.isfinite(reg[S_LO]) else 1.0, 1.0)
             if s_lo > 1.0:
                 size = (max(int(round((x1 - x0) / s_lo)), 1), max(int(round((y1 - y0) / s_lo)), 1))
-                crop = cv2.resize(crop, size, interpolation=cv2.INTER_AREA)
+                crop = cast(NDArray[np.uint8],   # uint8 in, uint8 out
+                            cv2.resize(crop, size, interpolation=cv2.INTER_AREA))
                 f = (x1 - x0) / size[0], (y1 - y0) / size[1]
             else:
                 f = 1.0, 1.0

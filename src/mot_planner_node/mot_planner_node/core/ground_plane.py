@@ -122,7 +122,7 @@ class ConsistencyGate:
         alive = set(ids_list)
         for tid in [t for t in self._heights if t not in alive]:
             del self._heights[tid]
-        for tid, h in zip(ids_list, values.tolist()):
+        for tid, h in zip(ids_list, values.tolist(), strict=True):
             self._heights.setdefault(tid, []).append(h)
             del self._heights[tid][:-self.frames]
         return self.plausible(ids_list)

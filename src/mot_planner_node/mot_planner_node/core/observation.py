@@ -114,15 +114,15 @@ class ObservationModel:
 
     def std(self, s: ArrayLike) -> FloatArray:
         """Per-axis noise std [u, v, s] at scale s, shape s.shape + (3,) (Eqs. 5.12-5.15)."""
-        s = np.maximum(np.asarray(s, dtype=float), 1e-6)
-        q_sl = self.sliding_window_jump(s)
-        q_scx, q_scy = self.scale_jumps(s)
+        sc: FloatArray = np.maximum(np.asarray(s, dtype=float), 1e-6)
+        q_sl = self.sliding_window_jump(sc)
+        q_scx, q_scy = self.scale_jumps(sc)
         quant = self._q_factor * np.stack([np.maximum(q_sl, q_scx),   # Eq. 5.15, u
                                            np.maximum(q_sl, q_scy),   # Eq. 5.15, v
-                                           self.scale_jump(s)], axis=-1)
+                                           self.scale_jump(sc)], axis=-1)
         g = self.geometry
         ex, ey, es = self.extra_std
-        extra = np.stack([ex * g.window_w * s, ey * g.window_h * s, es * s], axis=-1)
+        extra = np.stack([ex * g.window_w * sc, ey * g.window_h * sc, es * sc], axis=-1)
         return np.sqrt(quant ** 2 + extra ** 2)
 
     def covariance(self, s: ArrayLike) -> FloatArray:

@@ -39,8 +39,14 @@ from numpy.typing import NDArray
 
 from .kalman import MotionModel, logdet_sigma, update_covariance
 from .observation import DetectorGeometry, ObservationModel
-from .regions import (AREA_MODES, READ_MODES, centre_areas, constraint_areas, read_areas,
-                      search_regions)
+from .regions import (
+    AREA_MODES,
+    READ_MODES,
+    centre_areas,
+    constraint_areas,
+    read_areas,
+    search_regions,
+)
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -210,7 +216,7 @@ class _Node:
     n_a: FloatArray = field(default_factory=lambda: np.zeros(0))
     w_a: FloatArray = field(default_factory=lambda: np.zeros(0))
     expanded: int = 0
-    children: dict[tuple[int, int], '_Node'] = field(default_factory=dict)
+    children: dict[tuple[int, int], _Node] = field(default_factory=dict)
 
 
 class MctsPlanner:

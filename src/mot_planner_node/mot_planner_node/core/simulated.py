@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import cv2
 import numpy as np
@@ -106,7 +106,8 @@ def render(frame: SyntheticFrame, image_size: tuple[int, int], seed: int = 0) ->
     width, height = image_size
     rng = np.random.default_rng(seed)
     tex = rng.integers(0, 256, (height // 8 + 1, width // 8 + 1, 3), dtype=np.uint8)
-    img = cv2.resize(tex, (width, height), interpolation=cv2.INTER_LINEAR)
+    img = cast(NDArray[np.uint8],     # uint8 in, uint8 out
+               cv2.resize(tex, (width, height), interpolation=cv2.INTER_LINEAR))
     order = np.argsort(frame.boxes[:, 1] + frame.boxes[:, 3])
     for x, y, w, h in frame.boxes[order]:
         cv2.ellipse(img, (int(x + w / 2), int(y + h / 2)), (int(w / 2), int(h / 2)), 0, 0, 360,
@@ -259,7 +260,7 @@ def replay_detector_time(detector: Detector, images: list[NDArray[np.uint8]],
     """Wall time (s) of ``detector.detect(image, regions)`` per frame: what a real image
     detector costs on the regions another run chose (None or a full-image row: full frame)."""
     out = []
-    for image, reg in zip(images, regions):
+    for image, reg in zip(images, regions, strict=True):
         if reg is not None and len(reg) == 1 and not np.isfinite(reg[0, S_HI]) \
                 and reg[0, X0] == 0 and reg[0, Y0] == 0 \
                 and reg[0, X1] >= image.shape[1] and reg[0, Y1] >= image.shape[0]:

@@ -147,7 +147,7 @@ THESIS = {'new_tracks': 'none', 'area': 'centres', 'full_frame_period': 30, 'bir
 PROTOCOLS = {'deployed': DEPLOYED, 'thesis': THESIS}
 
 
-def deployed_config(planner: PlannerConfig | None = None, **overrides: object) -> 'TrackerConfig':
+def deployed_config(planner: PlannerConfig | None = None, **overrides: object) -> TrackerConfig:
     """The deployed configuration (:data:`DEPLOYED`) around a planner configuration, whose
     area is set to DEPLOYED's; ``overrides`` replace any TrackerConfig field."""
     kwargs: dict[str, object] = {k: v for k, v in DEPLOYED.items() if k != 'area'}
@@ -170,15 +170,15 @@ class Tracks:
     def __len__(self) -> int:
         return int(self.ids.shape[0])
 
-    def select(self, mask: BoolArray | IntArray) -> 'Tracks':
+    def select(self, mask: BoolArray | IntArray) -> Tracks:
         return Tracks(self.ids[mask], self.x[mask], self.P[mask], self.hits[mask],
                       self.misses[mask], self.confirmed[mask])
 
-    def concat(self, other: 'Tracks') -> 'Tracks':
+    def concat(self, other: Tracks) -> Tracks:
         return Tracks(*(np.concatenate([a, b]) for a, b in
                         zip((self.ids, self.x, self.P, self.hits, self.misses, self.confirmed),
                             (other.ids, other.x, other.P, other.hits, other.misses,
-                             other.confirmed))))
+                             other.confirmed), strict=True)))
 
 
 @dataclass

@@ -72,7 +72,7 @@ def vergence_poses(baseline: float, vergence: float, version: float = 0.0,
         raise ValueError(f'baseline must be > 0, got {baseline}')
     tilt_r = rot_x(-tilt)
     poses = []
-    for side, sign in (('left', 1.0), ('right', -1.0)):
+    for _side, sign in (('left', 1.0), ('right', -1.0)):
         t = np.eye(4)
         t[:3, :3] = tilt_r @ rot_y(version + sign * vergence / 2.0)
         t[:3, 3] = tilt_r @ np.array([-sign * baseline / 2.0, 0.0, 0.0])
@@ -86,7 +86,7 @@ def _rays_xyz(u: np.ndarray, v: np.ndarray, k: np.ndarray, pose: np.ndarray
     x = (u - k[0, 2]) * (1.0 / k[0, 0])
     y = (v - k[1, 2]) * (1.0 / k[1, 1])
     r = pose[:3, :3]
-    return tuple(r[i, 0] * x + r[i, 1] * y + r[i, 2] for i in range(3))   # type: ignore
+    return tuple(r[i, 0] * x + r[i, 1] * y + r[i, 2] for i in range(3))
 
 
 def pixel_rays(uv: np.ndarray, k: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -135,8 +135,8 @@ def triangulate_uv(ul: np.ndarray, vl: np.ndarray, ur: np.ndarray, vr: np.ndarra
         inv = 1.0 / den
         s = (b * e - c * d) * inv
         t = (a * e - b * d) * inv
-        xyz = [0.5 * (cl[i] + cr[i]) + 0.5 * (s * l + t * r)
-               for i, l, r in ((0, lx, rx), (1, ly, ry), (2, lz, rz))]
+        xyz = [0.5 * (cl[i] + cr[i]) + 0.5 * (s * l_i + t * r_i)
+               for i, l_i, r_i in ((0, lx, rx), (1, ly, ry), (2, lz, rz))]
     valid = (den > PARALLEL_SIN2 * a * c) & (s > 0) & (t > 0)
     valid &= np.isfinite(xyz[0]) & np.isfinite(xyz[1]) & np.isfinite(xyz[2])
     return xyz[0], xyz[1], xyz[2], valid

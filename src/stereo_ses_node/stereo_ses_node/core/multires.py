@@ -123,7 +123,7 @@ class DisparityWindow:
                              f'finite')
 
     @classmethod
-    def from_sgbm(cls, params: SGBMParams) -> 'DisparityWindow':
+    def from_sgbm(cls, params: SGBMParams) -> DisparityWindow:
         return cls(float(params.min_disparity),
                    float(params.min_disparity + params.num_disparities))
 
@@ -166,10 +166,8 @@ def disparity_window(k_left: np.ndarray, k_right: np.ndarray, pose_left: np.ndar
     rays, cos = rays[ok], cos[ok]
     found = []
     for depth in (near_m, far_m):
-        if math.isinf(depth):     # a point at infinity: the right camera sees the direction
-            pts = c + rays * 1e9
-        else:
-            pts = c + rays * (depth / cos)[:, None]
+        # depth inf: a point at infinity, the right camera sees the direction
+        pts = c + rays * 1e9 if math.isinf(depth) else c + rays * (depth / cos)[:, None]
         ul = project(pts, k_left, pose_left)[:, 0]
         ur = project(pts, k_right, pose_right)[:, 0]
         found.append(ul - ur)

@@ -13,8 +13,8 @@ look up the precomputed sigma points of `ut.SigmaPointTable`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -41,7 +41,7 @@ class GMM:
     covs: np.ndarray
 
     @classmethod
-    def create(cls, weights, means, covs) -> 'GMM':
+    def create(cls, weights, means, covs) -> GMM:
         """Validated mixture; diagonal covariances may be given as (M, 3) variances."""
         w = np.atleast_1d(np.asarray(weights, np.float64))
         mu = np.atleast_2d(np.asarray(means, np.float64))
@@ -128,6 +128,15 @@ def _cube_face(d: np.ndarray, g: int) -> np.ndarray:
     return (face * g + iv) * g + iu
 
 
+def _face_directions(ax: int, sign: float, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Unit directions through the points (u, v) of the cube face at coordinate ax = sign."""
+    out = np.zeros(u.shape + (3,))
+    out[..., ax] = sign
+    out[..., (ax + 1) % 3] = u
+    out[..., (ax + 2) % 3] = v
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
 def _bin_geometry(g: int) -> tuple[np.ndarray, np.ndarray]:
     """Centres (6 g^2, 3) and angular radii (6 g^2,) of the cube-map bins."""
     edges = np.linspace(-1.0, 1.0, g + 1)
@@ -136,22 +145,13 @@ def _bin_geometry(g: int) -> tuple[np.ndarray, np.ndarray]:
     for face in range(6):
         ax, neg = divmod(face, 2)
         sign = -1.0 if neg else 1.0
-        ua, va = (ax + 1) % 3, (ax + 2) % 3
-
-        def vec(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-            out = np.zeros(u.shape + (3,))
-            out[..., ax] = sign
-            out[..., ua] = u
-            out[..., va] = v
-            return out / np.linalg.norm(out, axis=-1, keepdims=True)
-
         vv, uu = np.meshgrid(mids, mids, indexing='ij')
-        c = vec(uu, vv)
+        c = _face_directions(ax, sign, uu, vv)
         r = np.zeros(uu.shape)
         for du in (0, 1):
             for dv in (0, 1):
                 cv, cu = np.meshgrid(edges[dv:g + dv], edges[du:g + du], indexing='ij')
-                cos = np.clip(np.sum(vec(cu, cv) * c, axis=-1), -1.0, 1.0)
+                cos = np.clip(np.sum(_face_directions(ax, sign, cu, cv) * c, axis=-1), -1.0, 1.0)
                 r = np.maximum(r, np.arccos(cos))
         centers.append(c.reshape(-1, 3))
         radii.append(r.ravel())

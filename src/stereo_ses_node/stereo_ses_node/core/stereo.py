@@ -30,15 +30,23 @@ import numpy as np
 
 from foveation_node.core.logpolar import LogPolarRetina
 
-from .multires import (DisparityWindow, FoveatedSGBM, SGBMParams, coarse_window,  # noqa: F401
-                       sgbm_window, to_gray)
 from .geometry import epipolar_distance
+from .multires import (  # noqa: F401 (re-exported)
+    DisparityWindow,
+    FoveatedSGBM,
+    SGBMParams,
+    coarse_window,
+    sgbm_window,
+    to_gray,
+)
 from .sensors import RFSensor, cartesian_sensor, fovea_radius, logpolar_sensor
 from .ut import SigmaPointTable, StereoRig, UTParams
 
-
 # least distance from the epipolar line (px) at which a match is dropped (see process)
 EPIPOLAR_TOLERANCE_PX = 1.0
+# the default settings (frozen dataclasses: one shared instance is safe)
+_SGBM_DEFAULTS = SGBMParams()
+_UT_DEFAULTS = UTParams()
 
 
 def compute_disparity(left: np.ndarray, right: np.ndarray,
@@ -71,8 +79,8 @@ class StereoPipeline:
     """
 
     def __init__(self, width: int, height: int, sensor: str = 'cartesian',
-                 n_rf: tuple[int, int] = (200, 200), sgbm: SGBMParams = SGBMParams(),
-                 ut: UTParams = UTParams(), retina_kwargs: dict | None = None) -> None:
+                 n_rf: tuple[int, int] = (200, 200), sgbm: SGBMParams = _SGBM_DEFAULTS,
+                 ut: UTParams = _UT_DEFAULTS, retina_kwargs: dict | None = None) -> None:
         self.width, self.height, self.kind = int(width), int(height), sensor
         self.sgbm = sgbm
         self.retina: LogPolarRetina | None = None

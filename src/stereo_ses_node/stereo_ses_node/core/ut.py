@@ -75,7 +75,7 @@ class StereoRig:
 
     @classmethod
     def create(cls, k_left: np.ndarray, k_right: np.ndarray, pose_left: np.ndarray,
-               pose_right: np.ndarray) -> 'StereoRig':
+               pose_right: np.ndarray) -> StereoRig:
         """Validated rig; ValueError names the bad argument."""
         rig = cls(check_intrinsics('k_left', k_left), check_intrinsics('k_right', k_right),
                   check_pose('pose_left', pose_left), check_pose('pose_right', pose_right))
@@ -123,7 +123,7 @@ class SigmaPointTable:
         xr = uv_right[:, None, :] + self.offsets_right[idx_right]
         return np.concatenate([xl, xr], axis=-1)
 
-    def transform(self, rig: 'StereoRig', uv_left: np.ndarray, uv_right: np.ndarray,
+    def transform(self, rig: StereoRig, uv_left: np.ndarray, uv_right: np.ndarray,
                   idx_left: np.ndarray, idx_right: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """UT (Eqs. 3.10-3.18) of N correspondences, gathering the stored sigma points by row.
@@ -135,7 +135,8 @@ class SigmaPointTable:
                   for c in range(2)]
         coords += [uv_right[:, c:c + 1] + np.take(self._soa_right[c], idx_right, axis=0)
                    for c in range(2)]
-        *comp, ok = triangulate_uv(*coords, rig.k_left, rig.k_right, rig.pose_left,
+        ul, vl, ur, vr = coords
+        *comp, ok = triangulate_uv(ul, vl, ur, vr, rig.k_left, rig.k_right, rig.pose_left,
                                    rig.pose_right)
         return _ut_moments(comp, ok, self.wm, self.wc)
 
@@ -164,7 +165,7 @@ def _ut_moments(comp: list[np.ndarray], ok: np.ndarray, wm: np.ndarray, wc: np.n
     valid = np.all(ok, axis=1)
     with np.errstate(invalid='ignore', over='ignore'):   # invalid rows are NaN'd below
         mean = np.stack([c @ wm for c in comp], axis=-1)             # Eq. 3.17
-        dev = [c - m[:, None] for c, m in zip(comp, mean.T)]
+        dev = [c - m[:, None] for c, m in zip(comp, mean.T, strict=True)]
         cov = np.empty((ok.shape[0], 3, 3))
         for a in range(3):                                           # Eq. 3.18
             for b in range(a, 3):

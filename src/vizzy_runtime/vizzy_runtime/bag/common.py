@@ -73,7 +73,7 @@ class QosProfile:
         }
 
     @classmethod
-    def from_dict(cls, item: dict[str, Any]) -> 'QosProfile':
+    def from_dict(cls, item: dict[str, Any]) -> QosProfile:
         """Parse a version 9 (names) or version 4..8 (integers) mapping."""
         try:
             return cls(
@@ -92,7 +92,7 @@ class QosProfile:
             raise ValueError(f'bad QoS profile {item!r}: {exc}') from None
 
     @classmethod
-    def from_dds(cls, qos: Any) -> 'QosProfile':
+    def from_dds(cls, qos: Any) -> QosProfile:
         """From a discovered endpoint's vizzy_runtime.dds.QoS."""
         return cls(
             history='keep_all' if qos.keep_all else 'keep_last',
@@ -270,7 +270,7 @@ class BagMetadata:
         os.replace(tmp, path)
 
     @classmethod
-    def load(cls, path: Path) -> 'BagMetadata':
+    def load(cls, path: Path) -> BagMetadata:
         """Parse a metadata.yaml (versions 4..9); BagError naming the file on any problem."""
         try:
             doc = yaml.safe_load(Path(path).read_text(encoding='utf-8'))

@@ -7,9 +7,10 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import replace
 from types import FrameType
-from typing import Any, Iterable
+from typing import Any
 
 from .. import msgs
 from .common import BagError, QosProfile, TopicInfo, one_line

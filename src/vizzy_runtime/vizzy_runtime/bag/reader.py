@@ -16,10 +16,11 @@ import logging
 import os
 import re
 import struct
+from collections.abc import Callable, Collection, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -29,8 +30,19 @@ from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
 from mcap.writer import CompressionType, Writer
 
-from .common import (INFINITE_NS, MCAP_MAGIC, METADATA_FILE, BagError, BagMessage, BagMetadata,
-                     FileInfo, TopicInfo, mcap_has_footer, one_line, parse_qos_profiles)
+from .common import (
+    INFINITE_NS,
+    MCAP_MAGIC,
+    METADATA_FILE,
+    BagError,
+    BagMessage,
+    BagMetadata,
+    FileInfo,
+    TopicInfo,
+    mcap_has_footer,
+    one_line,
+    parse_qos_profiles,
+)
 
 log = logging.getLogger('vizzy_runtime.bag')
 
@@ -42,6 +54,7 @@ try:
     _DECODE_ERRORS += (zstandard.ZstdError,)
 except ImportError:  # pragma: no cover - zstandard is a pinned dependency
     pass
+_READ_ERRORS: tuple[type[BaseException], ...] = (OSError, *_DECODE_ERRORS)
 
 
 # --- sequential scan (files without summary) ----------------------------------------------------
@@ -237,7 +250,7 @@ def _summarize(path: Path) -> tuple[list[TopicInfo], FileInfo]:
                 schemas, channels = summary.schemas, summary.channels
                 counts = dict(stats.channel_message_counts)
                 start, end = stats.message_start_time, stats.message_end_time
-    except (OSError, *_DECODE_ERRORS) as exc:
+    except _READ_ERRORS as exc:
         raise BagError(f'{path}: unreadable MCAP summary: {one_line(exc)}') from None
     count = sum(counts.values())
     return (_topics_and_stats(schemas, channels, counts),
@@ -423,6 +436,7 @@ class BagReader:
         return self._definitions
 
     def _file_definitions(self, file: Path) -> dict[str, tuple[str, str]]:
+        schemas: Collection[Schema]
         try:
             if file in self._scanned or not mcap_has_footer(file):
                 scan = _Scan()
@@ -433,7 +447,7 @@ class BagReader:
                 with open(file, 'rb') as f:
                     summary = make_reader(f).get_summary()
                 schemas = summary.schemas.values() if summary else []
-        except (OSError, *_DECODE_ERRORS) as exc:
+        except _READ_ERRORS as exc:
             raise BagError(f'{file}: unreadable MCAP schemas: {one_line(exc)}') from None
         return {s.name: (s.encoding, s.data.decode()) for s in schemas}
 
@@ -522,7 +536,7 @@ class BagReader:
     def close(self) -> None:
         """Nothing stays open between calls; kept for symmetry with BagWriter."""
 
-    def __enter__(self) -> 'BagReader':
+    def __enter__(self) -> BagReader:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,

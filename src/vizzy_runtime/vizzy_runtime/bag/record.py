@@ -8,9 +8,10 @@ import queue
 import signal
 import threading
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from types import FrameType
-from typing import Any, Iterable
+from typing import Any
 
 from .common import BagError, BagMetadata, QosProfile, one_line
 from .writer import BagWriter
@@ -182,6 +183,7 @@ class Recorder:
 
     def _write_loop(self, writer: BagWriter) -> None:
         while True:
+            item: tuple[str, bytes, int, int] | tuple[()] | None
             try:
                 item = self._queue.get(timeout=0.2)
             except queue.Empty:

@@ -2,21 +2,30 @@
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
 from types import TracebackType
-from typing import Iterable
 
 from mcap.writer import CompressionType, Writer
 
 from .. import msgs
-from .common import (INFINITE_NS, BagError, BagMetadata, FileInfo, QosProfile, TopicInfo,
-                     dump_qos_profiles, dump_yaml)
+from .common import (
+    INFINITE_NS,
+    BagError,
+    BagMetadata,
+    FileInfo,
+    QosProfile,
+    TopicInfo,
+    dump_qos_profiles,
+    dump_yaml,
+)
 
 _COMPRESSION = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE, '': CompressionType.NONE}
@@ -69,7 +78,7 @@ class BagWriter:
         try:
             self.path.mkdir(parents=True, exist_ok=True)
             self.file_path = self.path / f'{self.path.name}_0.mcap'
-            self._file = open(self.file_path, 'xb')
+            self._file = open(self.file_path, 'xb')  # noqa: SIM115 - kept open until close()
         except OSError as exc:
             raise BagError(f'{self.path}: cannot create bag: {exc.strerror}') from None
         # The lock tells readers the file is still being written; the kernel drops it even on
@@ -230,14 +239,13 @@ class BagWriter:
             except OSError as exc:
                 raise BagError(f'{self.file_path}: finishing failed: {exc.strerror}') from None
             finally:
-                try:
+                # the finishing error above says it; the buffered tail is lost
+                with contextlib.suppress(OSError):
                     self._file.close()
-                except OSError:
-                    pass  # the finishing error above says it; the buffered tail is lost
             meta.write(self.path)
             return meta
 
-    def __enter__(self) -> 'BagWriter':
+    def __enter__(self) -> BagWriter:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,

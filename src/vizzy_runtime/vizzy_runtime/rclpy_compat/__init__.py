@@ -1,4 +1,5 @@
-"""The bundled rclpy: the subset of rclpy's API our nodes use, on Cyclone DDS (see vizzy_runtime.ros)."""
+"""The bundled rclpy: the subset of rclpy's API our nodes use, on Cyclone DDS (see
+vizzy_runtime.ros)."""
 
 from __future__ import annotations
 
@@ -90,7 +91,8 @@ def spin(node: Node, executor: Executor | None = None) -> None:
         executor.remove_node(node)
 
 
-def spin_once(node: Node, *, executor: Executor | None = None, timeout_sec: float | None = None) -> None:
+def spin_once(node: Node, *, executor: Executor | None = None,
+              timeout_sec: float | None = None) -> None:
     executor = executor or get_global_executor()
     executor.add_node(node)
     try:

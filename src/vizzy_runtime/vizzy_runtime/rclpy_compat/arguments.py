@@ -1,4 +1,5 @@
-"""Parsing of ROS 2 command-line arguments (`--ros-args ... --`): remapping, parameters, params files.
+"""Parsing of ROS 2 command-line arguments (`--ros-args ... --`): remapping, parameters, params
+files.
 
 Mirrors rcl's rules: `-r/--remap [node:]from:=to` (incl. __node and __ns), `-p/--param name:=value`
 (value parsed as YAML), `--params-file FILE` (standard `node: ros__parameters:` files, `/**` and
@@ -49,7 +50,8 @@ class RosArguments:
         return found
 
     def parameter_overrides(self, node_fqn: str) -> dict[str, Any]:
-        """Parameter values for a node, later sources winning (files and -p in command-line order)."""
+        """Parameter values for a node, later sources winning (files and -p in command-line
+        order)."""
         name = node_fqn.rsplit('/', 1)[-1]
         out: dict[str, Any] = {}
         for pattern, pname, value in self.params:
@@ -92,14 +94,17 @@ def load_params_file(path: str | Path) -> list[tuple[str, str, Any]]:
         for key, value in node.items():
             if key == 'ros__parameters':
                 if not isinstance(value, dict):
-                    raise RosArgumentError(f'--params-file {path}: ros__parameters of {prefix!r} is not a mapping')
+                    raise RosArgumentError(f'--params-file {path}: ros__parameters of {prefix!r} '
+                                           'is not a mapping')
                 for pname, pvalue in _flatten(value):
                     out.append((prefix or '/**', pname, pvalue))
             elif isinstance(value, dict):
-                joined = f'{prefix}/{key}' if prefix and not key.startswith('/') else (prefix + key if prefix else key)
+                joined = (f'{prefix}/{key}' if prefix and not key.startswith('/')
+                          else (prefix + key if prefix else key))
                 walk(joined, value)
             else:
-                raise RosArgumentError(f'--params-file {path}: {key!r} is outside any ros__parameters')
+                raise RosArgumentError(f'--params-file {path}: {key!r} is outside any '
+                                       'ros__parameters')
 
     walk('', data)
     return out
@@ -142,7 +147,8 @@ def parse(argv: list[str] | None) -> RosArguments:
             in_ros = False
         elif not in_ros:
             result.unparsed.append(arg)
-        elif arg in ('-r', '--remap', '-p', '--param', '--params-file', '--log-level', '-e', '--enclave'):
+        elif arg in ('-r', '--remap', '-p', '--param', '--params-file', '--log-level', '-e',
+                     '--enclave'):
             if i + 1 >= len(args):
                 raise RosArgumentError(f'{arg} needs a value')
             value = args[i + 1]

@@ -1,10 +1,12 @@
-"""rclpy.context.Context: init/shutdown state, global --ros-args, and the wake-up condition executors wait on."""
+"""rclpy.context.Context: init/shutdown state, global --ros-args, and the wake-up condition
+executors wait on."""
 
 from __future__ import annotations
 
 import os
 import threading
-from typing import TYPE_CHECKING, Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from . import arguments
 
@@ -19,7 +21,7 @@ class Context:
         self._lock = threading.RLock()
         self.wake = threading.Condition(self._lock)
         self.args = arguments.RosArguments()
-        self.nodes: list['Node'] = []
+        self.nodes: list[Node] = []
         self._on_shutdown: list[Callable[[], None]] = []
         self._discovery: Any = None
         self.generation = 0  # bumped whenever something is ready to run

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import threading
 import time as _time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from .context import Context, get_default_context
 from .exceptions import ExternalShutdownException
@@ -24,7 +25,7 @@ class Future:
         self._done = False
         self._result: Any = None
         self._exception: BaseException | None = None
-        self._callbacks: list[Callable[['Future'], None]] = []
+        self._callbacks: list[Callable[[Future], None]] = []
 
     def done(self) -> bool:
         return self._done
@@ -42,7 +43,7 @@ class Future:
     def set_exception(self, exception: BaseException) -> None:
         self._exception, self._done = exception, True
 
-    def add_done_callback(self, callback: Callable[['Future'], None]) -> None:
+    def add_done_callback(self, callback: Callable[[Future], None]) -> None:
         self._callbacks.append(callback)
 
 
@@ -146,7 +147,8 @@ class SingleThreadedExecutor(Executor):
 
 
 class MultiThreadedExecutor(Executor):
-    """Runs callbacks in the spinning thread, like SingleThreadedExecutor: our nodes need no more."""
+    """Runs callbacks in the spinning thread, like SingleThreadedExecutor: our nodes need no
+    more."""
 
     def __init__(self, num_threads: int | None = None, *, context: Context | None = None) -> None:
         super().__init__(context=context)

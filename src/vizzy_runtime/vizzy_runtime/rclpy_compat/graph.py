@@ -1,10 +1,12 @@
-"""ROS 2 graph information on `ros_discovery_info`, as rmw_cyclonedds_cpp (Jazzy) publishes and reads it.
+"""ROS 2 graph information on `ros_discovery_info`, as rmw_cyclonedds_cpp (Jazzy) publishes and
+reads it.
 
 ROS 2 tools (`ros2 node list`, `ros2 node info`, rqt_graph, the ros2 daemon) do not learn which node
 owns which DDS reader/writer from DDS discovery: every participant publishes one
 rmw_dds_common/msg/ParticipantEntitiesInfo sample on a dedicated DDS topic, and every other
 participant keeps the latest sample per participant GID (rmw_dds_common GraphCache). This module
-does both for the bundled runtime, process-wide (one DDS participant per process, see dds.participant()):
+does both for the bundled runtime, process-wide (one DDS participant per process, see
+dds.participant()):
 
 - it publishes this process's nodes, each with the GUIDs of its DDS readers and writers,
   republished whole whenever a node or one of its readers/writers is created or destroyed
@@ -24,7 +26,8 @@ Wire facts, from upstream sources:
 - rmw_cyclonedds_cpp convert_guid_to_gid(): the GID is the 16-byte dds_guid_t; rmw_dds_common
   convert_gid_to_msg() copies RMW_GID_STORAGE_SIZE (16 in Jazzy) bytes into Gid.data (char[16]).
 - rmw_dds_common GraphCache::add_node / associate_reader / associate_writer: nodes, then readers
-  and writers, in creation order; update_participant_entities() replaces a participant's whole entry.
+  and writers, in creation order; update_participant_entities() replaces a participant's whole
+  entry.
 The one deliberate difference: the writer's reliability max_blocking_time is 100 ms like every other
 writer of this runtime (rmw uses infinity); it plays no part in matching.
 """
@@ -32,6 +35,7 @@ writer of this runtime (rmw uses infinity); it plays no part in matching.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import threading
 import time
 from dataclasses import dataclass
@@ -85,7 +89,8 @@ def writer_qos() -> Qos:
     return Qos(
         Policy.Reliability.Reliable(max_blocking_time=_MAX_BLOCKING_NS),
         Policy.Durability.TransientLocal,
-        Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(1), max_samples=-1,
+        Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(1),
+                                 max_samples=-1,
                                  max_instances=-1, max_samples_per_instance=-1),
         Policy.History.KeepLast(1),
         Policy.Liveliness.Automatic(lease_duration=_INFINITE_NS),
@@ -107,7 +112,8 @@ def reader_qos() -> Qos:
     )
 
 
-def build_message(participant_gid: bytes, nodes: list[tuple[str, str, list[bytes], list[bytes]]]) -> Any:
+def build_message(participant_gid: bytes,
+                  nodes: list[tuple[str, str, list[bytes], list[bytes]]]) -> Any:
     """A ParticipantEntitiesInfo from (namespace, name, reader GUIDs, writer GUIDs) per node."""
     gid_cls = msgs.get_message('rmw_dds_common/msg/Gid')
     node_cls = msgs.get_message('rmw_dds_common/msg/NodeEntitiesInfo')
@@ -125,8 +131,10 @@ def build_message(participant_gid: bytes, nodes: list[tuple[str, str, list[bytes
             for ns, name, readers, writers in nodes])
 
 
-def parse_message(raw: bytes | memoryview) -> tuple[bytes, list[tuple[str, str, list[bytes], list[bytes]]]]:
-    """(participant GID, [(namespace, name, reader GUIDs, writer GUIDs)]) from a sample's CDR bytes."""
+def parse_message(
+        raw: bytes | memoryview) -> tuple[bytes, list[tuple[str, str, list[bytes], list[bytes]]]]:
+    """(participant GID, [(namespace, name, reader GUIDs, writer GUIDs)]) from a sample's CDR
+    bytes."""
     msg = msgs.deserialize(raw, TYPENAME)
     return bytes(msg.gid.data), [
         (n.node_namespace, n.node_name, [bytes(g.data) for g in n.reader_gid_seq],
@@ -142,8 +150,8 @@ class _Graph:
         self._gid = dp.guid.bytes
         self._lock = threading.RLock()   # local nodes and the writer: update and publish atomically
         self._cache_lock = threading.Lock()  # what the reader learnt
-        self._nodes: list['Node'] = []
-        self._extra: dict['Node', tuple[list[bytes], list[bytes]]] = {}  # services' readers/writers
+        self._nodes: list[Node] = []
+        self._extra: dict[Node, tuple[list[bytes], list[bytes]]] = {}  # services' readers/writers
         self._topic = Topic(dp, TOPIC_NAME, dds.idl_type(TYPENAME))
         self._writer: DataWriter | None = None
         self._remote: dict[bytes, list[tuple[str, str, list[bytes], list[bytes]]]] = {}
@@ -156,9 +164,10 @@ class _Graph:
         self._reader.set_listener(Listener(on_data_available=lambda _r: self.refresh()))
 
     # --- publishing ------------------------------------------------------------------------
-    def _entities(self, node: 'Node') -> tuple[str, str, list[bytes], list[bytes]]:
+    def _entities(self, node: Node) -> tuple[str, str, list[bytes], list[bytes]]:
         readers, writers = self._extra.get(node, ([], []))
-        return (node.get_namespace(), node.get_name(), [s.guid for s in list(node.subscriptions)] + readers,
+        return (node.get_namespace(), node.get_name(),
+                [s.guid for s in list(node.subscriptions)] + readers,
                 [p.guid for p in list(node.publishers)] + writers)
 
     def local_nodes(self) -> list[tuple[str, str, list[bytes], list[bytes]]]:
@@ -174,24 +183,24 @@ class _Graph:
             if ret < 0:
                 raise DDSException(ret, f'writing {TOPIC_NAME}')
 
-    def add(self, node: 'Node') -> None:
+    def add(self, node: Node) -> None:
         with self._lock:
             if node not in self._nodes:
                 self._nodes.append(node)
             self.publish()
 
-    def changed(self, node: 'Node') -> None:
+    def changed(self, node: Node) -> None:
         with self._lock:
             if node in self._nodes:
                 self.publish()
 
-    def set_extra(self, node: 'Node', readers: list[bytes], writers: list[bytes]) -> None:
+    def set_extra(self, node: Node, readers: list[bytes], writers: list[bytes]) -> None:
         with self._lock:
             self._extra[node] = (list(readers), list(writers))
             if node in self._nodes:
                 self.publish()
 
-    def remove(self, node: 'Node') -> None:
+    def remove(self, node: Node) -> None:
         with self._lock:
             self._extra.pop(node, None)
             if node in self._nodes:
@@ -200,7 +209,8 @@ class _Graph:
 
     # --- reading ---------------------------------------------------------------------------
     def refresh(self) -> None:
-        """Take what the reader and the participant builtin topic received (listener thread or caller).
+        """Take what the reader and the participant builtin topic received (listener thread or
+        caller).
 
         Samples first, participants second: a participant's sample always arrives before its
         disposal, so taking in this order never keeps a gone participant's last sample alive."""
@@ -230,11 +240,10 @@ class _Graph:
                 del self._remote[key]
 
     def close(self) -> None:
-        """Delete the reader at interpreter exit, so its listener never calls into a finalizing Python."""
-        try:
+        """Delete the reader at interpreter exit, so its listener never calls into a finalizing
+        Python."""
+        with contextlib.suppress(Exception):  # already gone with the participant
             self._reader._delete(self._reader._ref)
-        except Exception:  # noqa: BLE001 - already gone with the participant
-            pass
 
     def snapshot(self) -> list[NodeInfo]:
         self.refresh()
@@ -243,7 +252,8 @@ class _Graph:
         with self._cache_lock:
             for gid, nodes in self._remote.items():
                 if gid in self._alive:
-                    out.extend(NodeInfo(ns, name, gid, tuple(r), tuple(w), False) for ns, name, r, w in nodes)
+                    out.extend(NodeInfo(ns, name, gid, tuple(r), tuple(w), False)
+                               for ns, name, r, w in nodes)
         return out
 
 
@@ -262,24 +272,24 @@ def _get() -> _Graph:
 
 # --- hooks (node.py) ------------------------------------------------------------------------
 
-def node_created(node: 'Node') -> None:
+def node_created(node: Node) -> None:
     """A node came to life: announce it (with whatever readers/writers it already has)."""
     _get().add(node)
 
 
-def node_changed(node: 'Node') -> None:
+def node_changed(node: Node) -> None:
     """One of a node's readers/writers was created or destroyed: republish. A node being destroyed
     publishes once, when it is gone (node_destroyed), not once per entity."""
     if _graph is not None and not getattr(node, '_destroyed', False):
         _graph.changed(node)
 
 
-def node_destroyed(node: 'Node') -> None:
+def node_destroyed(node: Node) -> None:
     if _graph is not None:
         _graph.remove(node)
 
 
-def set_extra_endpoints(node: 'Node', readers: list[bytes], writers: list[bytes]) -> None:
+def set_extra_endpoints(node: Node, readers: list[bytes], writers: list[bytes]) -> None:
     """DDS readers/writers of a node besides its subscriptions/publishers (its services'), announced
     with it until it is destroyed."""
     _get().set_extra(node, readers, writers)
@@ -288,9 +298,9 @@ def set_extra_endpoints(node: 'Node', readers: list[bytes], writers: list[bytes]
 # --- queries (CLI) --------------------------------------------------------------------------
 
 def snapshot(timeout_sec: float = 0.0) -> list[NodeInfo]:
-    """Every node of the graph with its participant and reader/writer GUIDs: this process's nodes and
-    those announced on ros_discovery_info by other live participants (this runtime or real ROS 2).
-    See node_names_and_namespaces() for timeout_sec."""
+    """Every node of the graph with its participant and reader/writer GUIDs: this process's nodes
+    and those announced on ros_discovery_info by other live participants (this runtime or real ROS
+    2). See node_names_and_namespaces() for timeout_sec."""
     graph = _get()
     remaining = timeout_sec - (time.monotonic() - graph.listening_since)
     if remaining > 0:
@@ -321,5 +331,6 @@ def node_names_and_namespaces(timeout_sec: float = 0.0) -> list[NodeName]:
 
 
 __all__ = ['ENCLAVE_USER_DATA', 'NodeInfo', 'NodeName', 'TOPIC_NAME', 'TYPENAME',
-           'announced_participants', 'build_message', 'node_changed', 'node_created', 'node_destroyed', 'node_names_and_namespaces',
+           'announced_participants', 'build_message', 'node_changed', 'node_created',
+           'node_destroyed', 'node_names_and_namespaces',
            'parse_message', 'reader_qos', 'set_extra_endpoints', 'snapshot', 'writer_qos']

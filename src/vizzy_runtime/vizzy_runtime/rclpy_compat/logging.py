@@ -7,8 +7,9 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from enum import IntEnum
-from typing import Any, Callable
+from typing import Any
 
 
 class LoggingSeverity(IntEnum):
@@ -55,7 +56,8 @@ def _caller() -> tuple[str, str, int]:
 
 def set_default_level(level: str | int) -> None:
     global _default_level
-    _default_level = _LEVEL_NAMES[level.lower()] if isinstance(level, str) else LoggingSeverity(level)
+    _default_level = (_LEVEL_NAMES[level.lower()] if isinstance(level, str)
+                      else LoggingSeverity(level))
 
 
 class RcutilsLogger:
@@ -66,7 +68,7 @@ class RcutilsLogger:
         self._once: set[tuple[str, int]] = set()
         self._last: dict[tuple[str, int], float] = {}
 
-    def get_child(self, name: str) -> 'RcutilsLogger':
+    def get_child(self, name: str) -> RcutilsLogger:
         child = RcutilsLogger(f'{self.name}.{name}' if self.name else name)
         child._parent = self if self.name else None
         return child

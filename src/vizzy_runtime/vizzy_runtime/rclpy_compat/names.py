@@ -24,7 +24,8 @@ def normalize_namespace(namespace: str | None) -> str:
 
 def validate_node_name(name: str) -> None:
     if not re.fullmatch(r'[A-Za-z_][A-Za-z0-9_]*', name or ''):
-        raise InvalidNameError(f'invalid node name {name!r}: letters, digits and _ only, not starting with a digit')
+        raise InvalidNameError(f'invalid node name {name!r}: letters, digits and _ only, not '
+                               'starting with a digit')
 
 
 def expand(name: str, node_name: str, namespace: str) -> str:

@@ -9,26 +9,40 @@ from __future__ import annotations
 import math
 import threading
 import time as _time
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from .. import dds, msgs
 from . import exceptions as exc
-from . import graph  # ros_discovery_info (graph hooks below are marked "graph hook")
-from . import param_services  # rcl_interfaces parameter services ("parameter services hook")
+from . import (
+    graph,  # ros_discovery_info (graph hooks below are marked "graph hook")
+    param_services,  # rcl_interfaces parameter services ("parameter services hook")
+)
 from .context import Context, get_default_context
 from .duration import Duration
 from .logging import RcutilsLogger, add_rosout_sink, remove_rosout_sink
 from .names import expand, normalize_namespace, remap, validate_node_name
-from .parameter import FloatingPointRange, IntegerRange, Parameter, ParameterDescriptor, SetParametersResult
-from .qos import (QoSProfile, as_profile, qos_profile_clock, qos_profile_parameter_events,
-                  qos_profile_rosout_default)
+from .parameter import (
+    FloatingPointRange,
+    IntegerRange,
+    Parameter,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from .qos import (
+    QoSProfile,
+    as_profile,
+    qos_profile_clock,
+    qos_profile_parameter_events,
+    qos_profile_rosout_default,
+)
 from .time import Clock, ClockType, ROSClock, Time
 
 ParameterEvent = msgs.get_message('rcl_interfaces/msg/ParameterEvent')
 
 
 class Publisher:
-    def __init__(self, node: 'Node', msg_type: type, topic: str, qos: QoSProfile) -> None:
+    def __init__(self, node: Node, msg_type: type, topic: str, qos: QoSProfile) -> None:
         self.msg_type = msg_type
         self.typename = msgs.type_of(msg_type)
         self.topic = topic
@@ -66,7 +80,8 @@ class Publisher:
             self._writer.write(data)
         except Exception:
             if self._destroyed:  # destroyed by another thread while this one wrote
-                raise exc.InvalidHandle('cannot use Destroyable because destruction was requested') from None
+                raise exc.InvalidHandle('cannot use Destroyable because destruction was '
+                                        'requested') from None
             raise
 
     def get_subscription_count(self) -> int:
@@ -89,7 +104,7 @@ class Publisher:
 MALFORMED_LOG_PERIOD_S = 5.0
 
 class Subscription:
-    def __init__(self, node: 'Node', msg_type: type, topic: str, callback: Callable[[Any], None],
+    def __init__(self, node: Node, msg_type: type, topic: str, callback: Callable[[Any], None],
                  qos: QoSProfile, raw: bool) -> None:
         self.msg_type = msg_type
         self.typename = msgs.type_of(msg_type)
@@ -158,10 +173,11 @@ class Subscription:
 
 
 class Timer:
-    def __init__(self, node: 'Node', period_sec: float, callback: Callable[[], Any], clock: Clock,
+    def __init__(self, node: Node, period_sec: float, callback: Callable[[], Any], clock: Clock,
                  autostart: bool = True) -> None:
         if not period_sec > 0 or not math.isfinite(period_sec):
-            raise ValueError(f'timer period must be a positive number of seconds, got {period_sec!r}')
+            raise ValueError('timer period must be a positive number of seconds, got '
+                             f'{period_sec!r}')
         self.timer_period_ns = int(period_sec * 1e9)
         self.callback = callback
         self.clock = clock
@@ -216,7 +232,8 @@ class Node:
         self.context = context or get_default_context()
         if not self.context.ok():
             raise RuntimeError('rclpy.init() has not been called (or the context was shut down)')
-        local = arguments.parse(['--ros-args', *cli_args] if cli_args and '--ros-args' not in cli_args
+        local = arguments.parse(['--ros-args', *cli_args] if cli_args
+                                and '--ros-args' not in cli_args
                                 else cli_args)
         merged = arguments.RosArguments()
         if use_global_arguments:
@@ -332,7 +349,8 @@ class Node:
         return timer
 
     def create_wall_timer(self, timer_period_sec: float, callback: Callable[[], Any]) -> Timer:
-        return self.create_timer(timer_period_sec, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        return self.create_timer(timer_period_sec, callback,
+                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def destroy_publisher(self, publisher: Publisher) -> bool:
         with self._lock:
@@ -413,23 +431,27 @@ class Node:
     def check_topic_types(self) -> None:
         """Warn (once per topic and type) about peers using one of our topics with another type:
         DDS never matches them, so without this the data would just not arrive."""
-        ours = {e.topic: e.typename for e in (*self.publishers, *self.subscriptions)}
+        endpoints: tuple[Publisher | Subscription, ...] = (*self.publishers, *self.subscriptions)
+        ours = {e.topic: e.typename for e in endpoints}
         warned = self._type_warnings
         for ep in self.context.discovery().endpoints():
             want = ours.get(ep.topic)
             if want and ep.typename != want and (ep.topic, ep.typename) not in warned:
                 warned.add((ep.topic, ep.typename))
                 role = 'publishes' if ep.is_writer else 'subscribes to'
-                self._logger.warning(f'[{ep.topic}] a peer {role} it as {ep.typename}, this node uses '
+                self._logger.warning(f'[{ep.topic}] a peer {role} it as {ep.typename}, this node '
+                                     'uses '
                                      f'{want}: the two will not connect')
 
     def count_publishers(self, topic_name: str) -> int:
         fqn = self.resolve_topic_name(topic_name)
-        return sum(1 for ep in self.context.discovery().endpoints() if ep.is_writer and ep.topic == fqn)
+        return sum(1 for ep in self.context.discovery().endpoints() if ep.is_writer
+                   and ep.topic == fqn)
 
     def count_subscribers(self, topic_name: str) -> int:
         fqn = self.resolve_topic_name(topic_name)
-        return sum(1 for ep in self.context.discovery().endpoints() if not ep.is_writer and ep.topic == fqn)
+        return sum(1 for ep in self.context.discovery().endpoints() if not ep.is_writer
+                   and ep.topic == fqn)
 
     # --- parameters -------------------------------------------------------------------------
     # rclpy's semantics (rclpy/node.py, Jazzy): a declaration or a set first applies the
@@ -447,7 +469,8 @@ class Node:
         if isinstance(value, Parameter.Type):
             declared_type, value = value, None
         elif value is None:
-            declared_type = Parameter.Type(descriptor.type) if descriptor.type else Parameter.Type.NOT_SET
+            declared_type = (Parameter.Type(descriptor.type) if descriptor.type
+                             else Parameter.Type.NOT_SET)
         else:
             declared_type = Parameter.Type.from_parameter_value(value)
         if descriptor.type == 0 and not descriptor.dynamic_typing:
@@ -463,7 +486,8 @@ class Node:
             raise exc.InvalidParameterValueException(name, value, result.reason)
         return self._parameters[name]
 
-    def declare_parameters(self, namespace: str, parameters: Iterable[tuple], ignore_override: bool = False) -> list[Parameter]:
+    def declare_parameters(self, namespace: str, parameters: Iterable[tuple],
+                           ignore_override: bool = False) -> list[Parameter]:
         out = []
         for entry in parameters:
             name = f'{namespace}.{entry[0]}' if namespace else entry[0]
@@ -503,13 +527,15 @@ class Node:
             raise exc.ParameterNotDeclaredException(name)
         return self._descriptors[name]
 
-    def add_pre_set_parameters_callback(self, callback: Callable[[list[Parameter]], list[Parameter]]) -> None:
+    def add_pre_set_parameters_callback(
+            self, callback: Callable[[list[Parameter]], list[Parameter]]) -> None:
         """callback(parameters) -> the parameters to set instead (set_parameters* only)."""
         if not callable(callback):
             raise TypeError(f'Callback must be callable, got {type(callback)}')
         self._pre_set_callbacks.insert(0, callback)
 
-    def remove_pre_set_parameters_callback(self, callback: Callable[[list[Parameter]], list[Parameter]]) -> None:
+    def remove_pre_set_parameters_callback(
+            self, callback: Callable[[list[Parameter]], list[Parameter]]) -> None:
         self._pre_set_callbacks.remove(callback)
 
     def add_on_set_parameters_callback(self, callback: Callable[[list[Parameter]], Any]) -> None:
@@ -526,7 +552,8 @@ class Node:
             raise TypeError(f'Callback must be callable, got {type(callback)}')
         self._post_set_callbacks.insert(0, callback)
 
-    def remove_post_set_parameters_callback(self, callback: Callable[[list[Parameter]], None]) -> None:
+    def remove_post_set_parameters_callback(self,
+                                            callback: Callable[[list[Parameter]], None]) -> None:
         self._post_set_callbacks.remove(callback)
 
     def set_parameters(self, parameter_list: list[Parameter]) -> list[Any]:
@@ -552,7 +579,8 @@ class Node:
                 raise exc.ParameterNotDeclaredException(undeclared)
         return self._set_parameters_common(parameter_list)
 
-    def _set_parameters_common(self, params: list[Parameter], descriptors: dict[str, Any] | None = None) -> Any:
+    def _set_parameters_common(self, params: list[Parameter],
+                               descriptors: dict[str, Any] | None = None) -> Any:
         """Descriptors given: a declaration (no read-only check; these descriptors are kept)."""
         table = self._descriptors if descriptors is None else descriptors
         for param in params:
@@ -563,7 +591,8 @@ class Node:
         for callback in list(self._set_callbacks):
             result = callback(params)
             if result is None or not hasattr(result, 'successful'):
-                return SetParametersResult(successful=False, reason='Callback returned an invalid type')
+                return SetParametersResult(successful=False,
+                                           reason='Callback returned an invalid type')
             if not result.successful:
                 return SetParametersResult(successful=False, reason=result.reason)
         event = ParameterEvent(node=self.get_fully_qualified_name())
@@ -580,7 +609,8 @@ class Node:
                     name=param.name, type=int(param.type_), dynamic_typing=True)
             old = self._parameters.get(param.name)
             new = old is None or old.type_ == Parameter.Type.NOT_SET
-            (event.new_parameters if new else event.changed_parameters).append(param.to_parameter_msg())
+            (event.new_parameters if new
+             else event.changed_parameters).append(param.to_parameter_msg())
             self._parameters[param.name] = param
         event.stamp = self._clock.now().to_msg()
         if self._parameter_event_publisher is not None:
@@ -590,10 +620,12 @@ class Node:
         return SetParametersResult(successful=True)
 
     def _coerce(self, name: str, value: Any, declared: Parameter.Type) -> Any:
-        if declared == Parameter.Type.DOUBLE and isinstance(value, int) and not isinstance(value, bool):
+        if (declared == Parameter.Type.DOUBLE and isinstance(value, int)
+                and not isinstance(value, bool)):
             return float(value)
         if declared == Parameter.Type.DOUBLE_ARRAY and isinstance(value, list):
-            return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value]
+            return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                    for v in value]
         return value
 
     def _apply_descriptor(self, param: Parameter, descriptor: Any, check_read_only: bool) -> Any:
@@ -605,7 +637,8 @@ class Node:
         if descriptor.dynamic_typing:
             descriptor.type = int(param.type_)
         elif param.name in self._parameters and param.type_ == Parameter.Type.NOT_SET:
-            return SetParametersResult(successful=False, reason='Static parameter cannot be undeclared')
+            return SetParametersResult(successful=False,
+                                       reason='Static parameter cannot be undeclared')
         elif param.type_ != Parameter.Type.NOT_SET and int(param.type_) != descriptor.type:
             return SetParametersResult(
                 successful=False, reason=f"Wrong parameter type, expected "
@@ -621,7 +654,8 @@ class Node:
         for p in params:
             if p.name == 'use_sim_time' and p.value is not None:
                 if p.type_ != Parameter.Type.BOOL:
-                    return SetParametersResult(successful=False, reason='use_sim_time must be a bool')
+                    return SetParametersResult(successful=False,
+                                               reason='use_sim_time must be a bool')
                 if 'use_sim_time' in self._parameters:
                     self._apply_sim_time(bool(p.value))
         return SetParametersResult(successful=True)
@@ -632,7 +666,8 @@ class Node:
         /clock is kept for when it is turned on again)."""
         if enabled and self._clock_sub is None:
             clock_type = msgs.get_message('rosgraph_msgs/msg/Clock')
-            self._clock_sub = self.create_subscription(clock_type, '/clock', self._on_clock, qos_profile_clock)
+            self._clock_sub = self.create_subscription(clock_type, '/clock', self._on_clock,
+                                                       qos_profile_clock)
         elif not enabled and self._clock_sub is not None:
             self.destroy_subscription(self._clock_sub)
             self._clock_sub = None
@@ -660,13 +695,15 @@ def _apply_range(param: Parameter, rng: Any, is_float: bool) -> Any:
     value, name = param.value, param.name
 
     def at(bound: float) -> bool:
-        return math.isclose(value, bound, rel_tol=Node.PARAM_REL_TOL) if is_float else value == bound
+        return math.isclose(value, bound,
+                            rel_tol=Node.PARAM_REL_TOL) if is_float else value == bound
 
     if at(lo) or at(hi):
         return SetParametersResult(successful=True)
     if not lo < value < hi:
         return SetParametersResult(successful=False, reason=(
-            f'Parameter {name} out of range{" " if is_float else ". "}Min: {lo}, Max: {hi}, value: {value}'))
+            f'Parameter {name} out of range{" " if is_float else ". "}Min: {lo}, Max: {hi}, value: '
+            f'{value}'))
     if rng.step:
         k = round((value - lo) / rng.step)
         off = not math.isclose(lo + k * rng.step, value, rel_tol=Node.PARAM_REL_TOL) if is_float \
@@ -678,4 +715,5 @@ def _apply_range(param: Parameter, rng: Any, is_float: bool) -> Any:
     return SetParametersResult(successful=True)
 
 
-__all__ = ['Node', 'Publisher', 'Subscription', 'Timer', 'Duration', 'FloatingPointRange', 'IntegerRange']
+__all__ = ['Node', 'Publisher', 'Subscription', 'Timer', 'Duration', 'FloatingPointRange',
+           'IntegerRange']

@@ -6,18 +6,21 @@ set_parameters_atomically, with rclpy's semantics. Requests are answered in the 
 node's spin), like any rclpy callback: each request reader's listener only flags its service ready
 and wakes the executor, which serves node.services.
 
-Wire format, as rmw_cyclonedds_cpp speaks it (src/rmw_node.cpp: rmw_init_cs, rmw_take_response_request,
-rmw_send_response, check_for_response_reader, check_for_service_reader_writer; src/serdata.hpp/.cpp):
+Wire format, as rmw_cyclonedds_cpp speaks it (src/rmw_node.cpp: rmw_init_cs,
+rmw_take_response_request,
+rmw_send_response, check_for_response_reader, check_for_service_reader_writer;
+src/serdata.hpp/.cpp):
 - service S: requests on DDS topic `rq<S>Request`, replies on `rr<S>Reply`, types
   `rcl_interfaces::srv::dds_::<Srv>_Request_` / `<Srv>_Response_`;
 - every sample: the 4-byte CDR encapsulation header, cdds_request_header_t {uint64 guid; int64 seq}
   (the client's request writer instance handle and its request counter, little endian), then the
-  request or response fields (16 header bytes keep their CDR alignment unchanged); a reply echoes the
-  request's header;
-- the service's reader and writer carry USER_DATA `serviceid=<id>;` (one id for both: clients look for a
-  reply writer with the id of a matched request reader); clients carry `clientid=<id>;`, and a service
-  replies once its reply writer has matched the reader with the requesting writer's clientid (rmw waits
-  up to 100 ms for it);
+  request or response fields (16 header bytes keep their CDR alignment unchanged); a reply echoes
+  the request's header;
+- the service's reader and writer carry USER_DATA `serviceid=<id>;` (one id for both: clients look
+for a
+  reply writer with the id of a matched request reader); clients carry `clientid=<id>;`, and a
+  service replies once its reply writer has matched the reader with the requesting writer's clientid
+  (rmw waits up to 100 ms for it);
 - QoS: rclpy's ParameterService uses qos_profile_parameters (reliable, volatile, keep last 1000).
 Cyclone's Python binding checks every written sample against the topic's type, so the DDS type of a
 service topic here is the request/response struct with the two header fields first: same type name,
@@ -27,15 +30,17 @@ same bytes on the wire. Not mirrored: Jazzy also puts the service type's `typeha
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
-from typing import TYPE_CHECKING, Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
+import cyclonedds.idl.types as idl
 from cyclonedds._clayer import ddspy_take
 from cyclonedds.core import DDSException, Listener
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl.annotations import final
-import cyclonedds.idl.types as idl
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy
 from cyclonedds.sub import DataReader
@@ -56,7 +61,8 @@ SRV_DEFINITIONS = {
     'DescribeParameters': 'string[] names\n---\nParameterDescriptor[] descriptors\n',
     'GetParameters': 'string[] names\n---\nParameterValue[] values\n',
     'GetParameterTypes': 'string[] names\n---\nuint8[] types\n',
-    'ListParameters': 'uint64 DEPTH_RECURSIVE=0\nstring[] prefixes\nuint64 depth\n---\nListParametersResult result\n',
+    'ListParameters': 'uint64 DEPTH_RECURSIVE=0\nstring[] prefixes\nuint64 '
+                      'depth\n---\nListParametersResult result\n',
     'SetParameters': 'Parameter[] parameters\n---\nSetParametersResult[] results\n',
     'SetParametersAtomically': 'Parameter[] parameters\n---\nSetParametersResult result\n',
 }
@@ -83,7 +89,7 @@ def register_types() -> None:
     with _lock:
         texts: dict[str, Any] = {}
         for srv, text in SRV_DEFINITIONS.items():
-            for half, part in zip(('Request', 'Response'), text.split('---\n')):
+            for half, part in zip(('Request', 'Response'), text.split('---\n'), strict=True):
                 name = f'rcl_interfaces/srv/{srv}_{half}'
                 if name not in store.fielddefs:
                     # rosbags resolves bare type names in the parsed type's own folder: parse as msg
@@ -99,7 +105,8 @@ def wire_type(typename: str) -> type[IdlStruct]:
     with _lock:
         cls = _wire_types.get(typename)
         if cls is None:
-            fields = {'guid': idl.uint64, 'seq': idl.int64, **dds.idl_type(typename).__annotations__}
+            fields = {'guid': idl.uint64, 'seq': idl.int64,
+                      **dds.idl_type(typename).__annotations__}
             dds_name = msgs.dds_type_name(typename)
             cls = make_idl_struct(dds_name.replace('::', '_') + 'wire', dds_name, fields)
             final(cls)
@@ -144,7 +151,8 @@ def unique_id() -> str:
 class _Service:
     """One service of a node: a request reader and a reply writer on rmw_cyclonedds_cpp's topics."""
 
-    def __init__(self, node: 'Node', name: str, srv: str, handler: Callable[['Node', Any, Any], None]) -> None:
+    def __init__(self, node: Node, name: str, srv: str,
+                 handler: Callable[[Node, Any, Any], None]) -> None:
         self.name = f'{node.get_fully_qualified_name().rstrip("/")}/{name}'
         self.request_type = f'rcl_interfaces/srv/{srv}_Request'
         self.response_type = f'rcl_interfaces/srv/{srv}_Response'
@@ -153,9 +161,12 @@ class _Service:
         self.ready = True  # set by the request listener; the executor calls serve()
         dp = dds.participant()
         qos = QOS.to_dds(f'serviceid={unique_id()};'.encode())
-        self._reader = DataReader(dp, Topic(dp, f'rq{self.name}Request', wire_type(self.request_type)), qos,
-                                  listener=Listener(on_data_available=lambda _r: self._on_request()))
-        self._writer = DataWriter(dp, Topic(dp, f'rr{self.name}Reply', wire_type(self.response_type)), qos)
+        self._reader = DataReader(dp, Topic(dp, f'rq{self.name}Request',
+                                            wire_type(self.request_type)), qos,
+                                  listener=Listener(
+                                      on_data_available=lambda _r: self._on_request()))
+        self._writer = DataWriter(dp, Topic(dp, f'rr{self.name}Reply',
+                                            wire_type(self.response_type)), qos)
 
     @property
     def reader_guid(self) -> bytes:
@@ -184,22 +195,27 @@ class _Service:
         try:
             header, request = decode(data, self.request_type)
         except Exception as err:  # noqa: BLE001 - a malformed request never stops the node
-            self._node.get_logger().error(f'[{self.name}] dropped a malformed request ({len(data)} bytes): {err}')
+            self._node.get_logger().error(f'[{self.name}] dropped a malformed request ({len(data)} '
+                                          f'bytes): {err}')
             return
         response = msgs.get_message(self.response_type)()
         try:
             self._handler(self._node, request, response)
         except Exception as err:  # noqa: BLE001 - e.g. a set-parameters callback that raised
-            self._node.get_logger().error(f'[{self.name}] request failed: {type(err).__name__}: {err}')
+            self._node.get_logger().error(f'[{self.name}] request failed: {type(err).__name__}: '
+                                          f'{err}')
             return
         if self._client_present(client_writer):
-            ret = dds.write_serialized(self._writer._ref, encode(header, response, self.response_type))
+            ret = dds.write_serialized(self._writer._ref,
+                                       encode(header, response, self.response_type))
             if ret < 0:
-                self._node.get_logger().error(f'[{self.name}] reply not sent: {DDSException(ret, "write")}')
+                self._node.get_logger().error(f'[{self.name}] reply not sent: '
+                                              f'{DDSException(ret, "write")}')
 
     def _client_present(self, client_writer: int) -> bool:
-        """False if the client is gone; else wait (up to RESPONSE_READER_WAIT_S) until the reply writer
-        has matched the reader of the client that sent the request, as rmw_send_response does."""
+        """False if the client is gone; else wait (up to RESPONSE_READER_WAIT_S) until the reply
+        writer has matched the reader of the client that sent the request, as rmw_send_response
+        does."""
         deadline = time.monotonic() + RESPONSE_READER_WAIT_S
         while True:
             endpoint = self._reader.get_matched_publication_data(client_writer)
@@ -208,25 +224,25 @@ class _Service:
             # endpoint None while matched: Cyclone's matched-endpoint data can lag the match
             clientid = None if endpoint is None else user_data_value(endpoint.qos, 'clientid')
             if endpoint is not None and (clientid is None or any(
-                    user_data_value(getattr(self._writer.get_matched_subscription_data(h), 'qos', None),
+                    user_data_value(getattr(self._writer.get_matched_subscription_data(h), 'qos',
+                                            None),
                                     'clientid') == clientid
                     for h in self._writer.get_matched_subscriptions())):
                 return True
             if time.monotonic() > deadline:
-                return True  # write anyway: delivered if the reader matches in time, dropped otherwise
+                # write anyway: delivered if the reader matches in time, dropped otherwise
+                return True
             time.sleep(0.01)
 
     def destroy(self) -> None:
         for entity in (self._reader, self._writer):
-            try:
+            with contextlib.suppress(Exception):  # already gone
                 entity._delete(entity._ref)
-            except Exception:  # noqa: BLE001 - already gone
-                pass
 
 
 # --- handlers: rclpy's ParameterService callbacks (rclpy/parameter_service.py) -----------------
 
-def _describe_parameters(node: 'Node', request: Any, response: Any) -> None:
+def _describe_parameters(node: Node, request: Any, response: Any) -> None:
     out = []
     for name in request.names:
         try:
@@ -237,7 +253,7 @@ def _describe_parameters(node: 'Node', request: Any, response: Any) -> None:
     response.descriptors = out
 
 
-def _get_parameters(node: 'Node', request: Any, response: Any) -> None:
+def _get_parameters(node: Node, request: Any, response: Any) -> None:
     out = []
     for name in request.names:
         try:
@@ -248,8 +264,8 @@ def _get_parameters(node: 'Node', request: Any, response: Any) -> None:
     response.values = out
 
 
-def _get_parameter_types(node: 'Node', request: Any, response: Any) -> None:
-    out = []
+def _get_parameter_types(node: Node, request: Any, response: Any) -> None:
+    out: list[int] = []
     for name in request.names:
         if not node.has_parameter(name):  # rclpy Node.get_parameter_type raises for these
             out = []
@@ -267,11 +283,11 @@ def list_parameters(names: list[str], prefixes: list[str], depth: int) -> Any:
 
     recursive = not prefixes and depth == 0  # DEPTH_RECURSIVE
     for name in names:
-        if not recursive and not (not prefixes and shallow(name)):
-            if not any(name == prefix or (name.startswith(prefix + PARAMETER_SEPARATOR)
-                                          and (depth == 0 or shallow(name[len(prefix) + 1:])))
-                       for prefix in prefixes):
-                continue
+        if (not recursive and not (not prefixes and shallow(name))
+                and not any(name == prefix or (name.startswith(prefix + PARAMETER_SEPARATOR)
+                                               and (depth == 0 or shallow(name[len(prefix) + 1:])))
+                            for prefix in prefixes)):
+            continue
         result.names.append(name)
         last = name.rfind(PARAMETER_SEPARATOR)
         if last != -1 and name[:last] not in result.prefixes:
@@ -279,22 +295,23 @@ def list_parameters(names: list[str], prefixes: list[str], depth: int) -> Any:
     return result
 
 
-def _list_parameters(node: 'Node', request: Any, response: Any) -> None:
-    response.result = list_parameters(list(node._parameters), list(request.prefixes), int(request.depth))
+def _list_parameters(node: Node, request: Any, response: Any) -> None:
+    response.result = list_parameters(list(node._parameters), list(request.prefixes),
+                                      int(request.depth))
 
 
-def _set_one_atomically(node: 'Node', params: list[Any]) -> Any:
+def _set_one_atomically(node: Node, params: list[Any]) -> Any:
     try:
         return node.set_parameters_atomically([Parameter.from_parameter_msg(p) for p in params])
     except (ParameterNotDeclaredException, TypeError, ValueError) as err:
         return SetParametersResult(successful=False, reason=str(err))
 
 
-def _set_parameters(node: 'Node', request: Any, response: Any) -> None:
+def _set_parameters(node: Node, request: Any, response: Any) -> None:
     response.results = [_set_one_atomically(node, [p]) for p in request.parameters]
 
 
-def _set_parameters_atomically(node: 'Node', request: Any, response: Any) -> None:
+def _set_parameters_atomically(node: Node, request: Any, response: Any) -> None:
     response.result = _set_one_atomically(node, list(request.parameters))
 
 
@@ -311,9 +328,10 @@ _HANDLERS = {
 class ParameterServices:
     """A node's six parameter services, answered from its executor."""
 
-    def __init__(self, node: 'Node') -> None:
+    def __init__(self, node: Node) -> None:
         self._node = node
-        self.services = [_Service(node, name, srv, _HANDLERS[name]) for name, srv in SERVICES.items()]
+        self.services = [_Service(node, name, srv, _HANDLERS[name])
+                         for name, srv in SERVICES.items()]
         node.services.extend(self.services)  # the executor serves node.services, as rclpy's does
         graph.set_extra_endpoints(node, readers=[s.reader_guid for s in self.services],
                                   writers=[s.writer_guid for s in self.services])
@@ -325,15 +343,15 @@ class ParameterServices:
             service.destroy()
 
 
-_running: dict['Node', ParameterServices] = {}
+_running: dict[Node, ParameterServices] = {}
 
 
-def start(node: 'Node') -> None:
+def start(node: Node) -> None:
     """Serve the node's parameters (hook in Node.__init__, before the node is announced)."""
     _running[node] = ParameterServices(node)
 
 
-def stop(node: 'Node') -> None:
+def stop(node: Node) -> None:
     """Hook in Node.destroy_node."""
     services = _running.pop(node, None)
     if services is not None:

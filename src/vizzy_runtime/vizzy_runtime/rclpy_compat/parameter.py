@@ -31,7 +31,7 @@ class Parameter:
         STRING_ARRAY = 9
 
         @classmethod
-        def from_parameter_value(cls, value: Any) -> 'Parameter.Type':
+        def from_parameter_value(cls, value: Any) -> Parameter.Type:
             if value is None:
                 return cls.NOT_SET
             if isinstance(value, (bool, np.bool_)):
@@ -48,14 +48,17 @@ class Parameter:
                 items = list(value)
                 if all(isinstance(v, (bool, np.bool_)) for v in items) and items:
                     return cls.BOOL_ARRAY
-                if all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in items) and items:
+                if all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+                       for v in items) and items:
                     return cls.INTEGER_ARRAY
-                if all(isinstance(v, (float, int, np.floating)) and not isinstance(v, bool) for v in items) and items:
+                if all(isinstance(v, (float, int, np.floating)) and not isinstance(v, bool)
+                       for v in items) and items:
                     return cls.DOUBLE_ARRAY
                 if all(isinstance(v, str) for v in items) and items:
                     return cls.STRING_ARRAY
                 if not items:
-                    raise TypeError('an empty list has no parameter type: declare it with a typed descriptor')
+                    raise TypeError('an empty list has no parameter type: declare it with a typed '
+                                    'descriptor')
             raise TypeError(f'value {value!r} has no ROS parameter type')
 
         def check(self, value: Any) -> bool:
@@ -66,9 +69,10 @@ class Parameter:
                     self == Parameter.Type.DOUBLE_ARRAY
                     and Parameter.Type.from_parameter_value(value) == Parameter.Type.INTEGER_ARRAY)
             except TypeError:
-                return isinstance(value, (list, tuple)) and not value and self >= Parameter.Type.BYTE_ARRAY
+                return isinstance(value,
+                                  (list, tuple)) and not value and self >= Parameter.Type.BYTE_ARRAY
 
-    def __init__(self, name: str, type_: 'Parameter.Type | None' = None, value: Any = None) -> None:
+    def __init__(self, name: str, type_: Parameter.Type | None = None, value: Any = None) -> None:
         if type_ is None:
             type_ = Parameter.Type.from_parameter_value(value)
         type_ = Parameter.Type(type_)
@@ -85,7 +89,7 @@ class Parameter:
         return self._name
 
     @property
-    def type_(self) -> 'Parameter.Type':
+    def type_(self) -> Parameter.Type:
         return self._type
 
     @property
@@ -108,10 +112,11 @@ class Parameter:
         return msg
 
     def to_parameter_msg(self) -> Any:
-        return msgs.get_message('rcl_interfaces/msg/Parameter')(name=self._name, value=self.get_parameter_value())
+        return msgs.get_message('rcl_interfaces/msg/Parameter')(
+            name=self._name, value=self.get_parameter_value())
 
     @classmethod
-    def from_parameter_msg(cls, msg: Any) -> 'Parameter':
+    def from_parameter_msg(cls, msg: Any) -> Parameter:
         return cls(msg.name, Parameter.Type(msg.value.type), parameter_value_to_python(msg.value))
 
     def __repr__(self) -> str:
@@ -123,7 +128,8 @@ def parameter_value_to_python(value: Any) -> Any:
     if t == Parameter.Type.NOT_SET:
         return None
     field = ['', 'bool_value', 'integer_value', 'double_value', 'string_value', 'byte_array_value',
-             'bool_array_value', 'integer_array_value', 'double_array_value', 'string_array_value'][t]
+             'bool_array_value', 'integer_array_value', 'double_array_value',
+             'string_array_value'][t]
     out = getattr(value, field)
     if isinstance(out, np.ndarray):
         out = bytes(out) if t == Parameter.Type.BYTE_ARRAY else out.tolist()

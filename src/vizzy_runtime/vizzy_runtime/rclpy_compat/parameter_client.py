@@ -12,16 +12,19 @@ Two wire formats, chosen per request from the service's endpoints:
   client calling the same node at the same moment could have its reply taken for ours.
 
 The reverse, a Fast DDS client calling a service of this runtime, cannot work: rmw_fastrtps_cpp's
-client keeps only replies whose related sample identity names it (ClientListener::on_data_available),
+client keeps only replies whose related sample identity names it
+(ClientListener::on_data_available),
 and Cyclone DDS has no way to send that inline QoS. (rmw_cyclonedds_cpp clients can: same format.)
 """
 
 from __future__ import annotations
 
 import collections
+import contextlib
 import threading
 import time
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 from cyclonedds._clayer import ddspy_take
 from cyclonedds.core import Listener
@@ -31,8 +34,8 @@ from cyclonedds.topic import Topic
 
 from .. import dds, msgs
 from .executors import Future
-from .parameter import Parameter
 from .param_services import QOS, SERVICES, decode, encode, unique_id, user_data_value, wire_type
+from .parameter import Parameter
 
 if TYPE_CHECKING:
     from .node import Node
@@ -45,7 +48,7 @@ class ServiceClient:
     """A client of one rcl_interfaces service (request writer + reply reader), futures completed by
     the node's executor like rclpy's."""
 
-    def __init__(self, node: 'Node', service: str, srv: str) -> None:
+    def __init__(self, node: Node, service: str, srv: str) -> None:
         self.service = service
         self.request_type = f'rcl_interfaces/srv/{srv}_Request'
         self.response_type = f'rcl_interfaces/srv/{srv}_Response'
@@ -62,7 +65,8 @@ class ServiceClient:
         # the wire struct (header fields first, as a bundled service's) now; the bare request and
         # response (Fast DDS services; they announce no type information and so match both) once a
         # service without serviceid shows up.
-        self._writer = DataWriter(dp, Topic(dp, f'rq{service}Request', wire_type(self.request_type)), self._qos)
+        self._writer = DataWriter(dp, Topic(dp, f'rq{service}Request',
+                                            wire_type(self.request_type)), self._qos)
         self._reader: DataReader | None = DataReader(
             dp, Topic(dp, f'rr{service}Reply', wire_type(self.response_type)), self._qos,
             listener=Listener(on_data_available=lambda _r: self._on_reply()))
@@ -85,17 +89,21 @@ class ServiceClient:
         return {sid for _, sid in self._request_readers() if sid is not None}
 
     def _is_fast_dds_service(self) -> bool:
-        """A request reader of rmw_fastrtps_cpp: eProsima's vendor id opens its GUID, no serviceid."""
-        return any(guid[:2] == FAST_DDS_VENDOR and sid is None for guid, sid in self._request_readers())
+        """A request reader of rmw_fastrtps_cpp: eProsima's vendor id opens its GUID, no
+        serviceid."""
+        return any(guid[:2] == FAST_DDS_VENDOR and sid is None
+                   for guid, sid in self._request_readers())
 
     def _bare_endpoints(self) -> tuple[DataWriter, DataReader]:
         with self._lock:
             if self._bare_writer is None or self._bare_reader is None:
                 dp = dds.participant()
                 self._bare_writer = DataWriter(
-                    dp, Topic(dp, f'rq{self.service}Request', dds.idl_type(self.request_type)), self._qos)
+                    dp, Topic(dp, f'rq{self.service}Request', dds.idl_type(self.request_type)),
+                    self._qos)
                 self._bare_reader = DataReader(
-                    dp, Topic(dp, f'rr{self.service}Reply', dds.idl_type(self.response_type)), self._qos,
+                    dp, Topic(dp, f'rr{self.service}Reply', dds.idl_type(self.response_type)),
+                    self._qos,
                     listener=Listener(on_data_available=lambda _r: self._on_reply()))
                 # the wire-typed reader would only log a failed deserialization per reply
                 headed, self._reader = self._reader, None
@@ -141,7 +149,8 @@ class ServiceClient:
         if self._headed_format:  # as service_is_ready found it (matched-endpoint data can blink)
             with self._lock:
                 self._seq += 1
-                header = self._guid.to_bytes(8, 'little') + self._seq.to_bytes(8, 'little', signed=True)
+                header = self._guid.to_bytes(8, 'little') + self._seq.to_bytes(8, 'little',
+                                                                               signed=True)
                 self._headed[(self._guid, self._seq)] = future
                 self._write(self._writer, encode(header, request, self.request_type), future)
             return future
@@ -154,7 +163,8 @@ class ServiceClient:
     def _write(self, writer: DataWriter, data: bytes, future: Future) -> None:
         ret = dds.write_serialized(writer._ref, data)
         if ret < 0:
-            future.set_exception(RuntimeError(f'{self.service}: request not sent (DDS error {ret})'))
+            future.set_exception(RuntimeError(f'{self.service}: request not sent (DDS error '
+                                              f'{ret})'))
 
     def _send_next_bare(self) -> None:
         """Fast DDS format: one request in flight (caller holds the lock)."""
@@ -188,9 +198,10 @@ class ServiceClient:
             if not bare:
                 try:
                     header, response = decode(data, self.response_type)
-                except Exception:  # noqa: BLE001 - not ours to read: no request of ours is waiting on it
-                    return
-                key = (int.from_bytes(header[:8], 'little'), int.from_bytes(header[8:], 'little', signed=True))
+                except Exception:  # noqa: BLE001
+                    return  # not ours to read: no request of ours is waiting on it
+                key = (int.from_bytes(header[:8], 'little'),
+                       int.from_bytes(header[8:], 'little', signed=True))
                 future = self._headed.pop(key, None)  # None: the reply to another client
                 if future is None:
                     return
@@ -224,22 +235,21 @@ class ServiceClient:
         for entity in (self._writer, self._reader, self._bare_writer, self._bare_reader):
             if entity is None:
                 continue
-            try:
+            with contextlib.suppress(Exception):  # already gone
                 entity._delete(entity._ref)
-            except Exception:  # noqa: BLE001 - already gone
-                pass
 
 
 class AsyncParameterClient:
     """rclpy's AsyncParameterClient: each call returns a Future whose result is the service's
     response (e.g. GetParameters_Response with `values`)."""
 
-    def __init__(self, node: 'Node', remote_node_name: str, qos_profile: Any = None,
+    def __init__(self, node: Node, remote_node_name: str, qos_profile: Any = None,
                  callback_group: Any = None) -> None:
         name = remote_node_name if remote_node_name.startswith('/') else \
             f'{node.get_namespace().rstrip("/")}/{remote_node_name}'
         self.remote_node_name = name
-        self._clients = {verb: ServiceClient(node, f'{name}/{verb}', srv) for verb, srv in SERVICES.items()}
+        self._clients = {verb: ServiceClient(node, f'{name}/{verb}', srv)
+                         for verb, srv in SERVICES.items()}
 
     def services_are_ready(self) -> bool:
         return all(client.service_is_ready() for client in self._clients.values())
@@ -261,9 +271,11 @@ class AsyncParameterClient:
 
     def list_parameters(self, prefixes: Sequence[str] | None = None, depth: int | None = None,
                         callback: Callable[[Future], None] | None = None) -> Future:
-        return self._call('list_parameters', callback, prefixes=list(prefixes or []), depth=depth or 0)
+        return self._call('list_parameters', callback, prefixes=list(prefixes or []),
+                          depth=depth or 0)
 
-    def get_parameters(self, names: Sequence[str], callback: Callable[[Future], None] | None = None) -> Future:
+    def get_parameters(self, names: Sequence[str],
+                       callback: Callable[[Future], None] | None = None) -> Future:
         return self._call('get_parameters', callback, names=list(names))
 
     def get_parameter_types(self, names: Sequence[str],

@@ -1,4 +1,5 @@
-"""rclpy.qos subset: profiles and policies, mapped one to one onto DDS QoS (vizzy_runtime.dds.QoS)."""
+"""rclpy.qos subset: profiles and policies, mapped one to one onto DDS QoS
+(vizzy_runtime.dds.QoS)."""
 
 from __future__ import annotations
 
@@ -43,7 +44,8 @@ QoSLivelinessPolicy = LivelinessPolicy
 class QoSProfile:
     """rclpy.qos.QoSProfile: history + depth are required unless history is KEEP_ALL."""
 
-    def __init__(self, *, depth: int | None = None, history: HistoryPolicy = HistoryPolicy.KEEP_LAST,
+    def __init__(self, *, depth: int | None = None,
+                 history: HistoryPolicy = HistoryPolicy.KEEP_LAST,
                  reliability: ReliabilityPolicy = ReliabilityPolicy.RELIABLE,
                  durability: DurabilityPolicy = DurabilityPolicy.VOLATILE,
                  liveliness: LivelinessPolicy = LivelinessPolicy.SYSTEM_DEFAULT,

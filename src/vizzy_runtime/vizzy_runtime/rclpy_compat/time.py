@@ -1,11 +1,13 @@
-"""rclpy.time.Time and rclpy.clock: system, steady and ROS clocks (ROS clock follows /clock with use_sim_time)."""
+"""rclpy.time.Time and rclpy.clock: system, steady and ROS clocks (ROS clock follows /clock with
+use_sim_time)."""
 
 from __future__ import annotations
 
 import threading
 import time as _time
+from collections.abc import Callable
 from enum import IntEnum
-from typing import Any, Callable
+from typing import Any
 
 from .. import msgs
 from .duration import Duration
@@ -39,20 +41,20 @@ class Time:
         return msgs.get_message('builtin_interfaces/msg/Time')(sec=sec, nanosec=nsec)
 
     @classmethod
-    def from_msg(cls, msg: Any, clock_type: ClockType = ClockType.ROS_TIME) -> 'Time':
+    def from_msg(cls, msg: Any, clock_type: ClockType = ClockType.ROS_TIME) -> Time:
         return cls(seconds=msg.sec, nanoseconds=msg.nanosec, clock_type=clock_type)
 
-    def __add__(self, other: Duration) -> 'Time':
+    def __add__(self, other: Duration) -> Time:
         return Time(nanoseconds=self._ns + other.nanoseconds, clock_type=self.clock_type)
 
-    def __sub__(self, other: 'Time | Duration') -> Any:
+    def __sub__(self, other: Time | Duration) -> Any:
         if isinstance(other, Time):
             if other.clock_type != self.clock_type:
                 raise TypeError("Can't subtract times with different clock types")
             return Duration(nanoseconds=self._ns - other._ns)
         return Time(nanoseconds=self._ns - other.nanoseconds, clock_type=self.clock_type)
 
-    def _cmp(self, other: 'Time') -> int:
+    def _cmp(self, other: Time) -> int:
         if not isinstance(other, Time):
             raise TypeError(f'cannot compare Time with {type(other).__name__}')
         if other.clock_type != self.clock_type:
@@ -62,16 +64,16 @@ class Time:
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Time) and self._cmp(other) == 0
 
-    def __lt__(self, other: 'Time') -> bool:
+    def __lt__(self, other: Time) -> bool:
         return self._cmp(other) < 0
 
-    def __le__(self, other: 'Time') -> bool:
+    def __le__(self, other: Time) -> bool:
         return self._cmp(other) <= 0
 
-    def __gt__(self, other: 'Time') -> bool:
+    def __gt__(self, other: Time) -> bool:
         return self._cmp(other) > 0
 
-    def __ge__(self, other: 'Time') -> bool:
+    def __ge__(self, other: Time) -> bool:
         return self._cmp(other) >= 0
 
     def __hash__(self) -> int:

@@ -10,8 +10,10 @@ from .. import dds, msgs
 from . import param_services
 
 # Types every node's runtime uses (rosout, parameter events, /clock, the graph topic, diagnostics).
-RUNTIME_TYPES = ('rcl_interfaces/msg/Log', 'rcl_interfaces/msg/ParameterEvent', 'rosgraph_msgs/msg/Clock',
-                 'rmw_dds_common/msg/ParticipantEntitiesInfo', 'diagnostic_msgs/msg/DiagnosticArray',
+RUNTIME_TYPES = ('rcl_interfaces/msg/Log', 'rcl_interfaces/msg/ParameterEvent',
+                 'rosgraph_msgs/msg/Clock',
+                 'rmw_dds_common/msg/ParticipantEntitiesInfo',
+                 'diagnostic_msgs/msg/DiagnosticArray',
                  'tf2_msgs/msg/TFMessage')
 
 

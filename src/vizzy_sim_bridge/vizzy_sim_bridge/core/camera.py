@@ -26,7 +26,8 @@ def focal_length(width: int, hfov_deg: float) -> float:
 
 
 def fovy_deg(width: int, height: int, hfov_deg: float) -> float:
-    """MuJoCo's camera fovy [deg] (vertical FOV) giving horizontal FOV hfov_deg at width x height."""
+    """MuJoCo's camera fovy [deg] (vertical FOV) giving horizontal FOV hfov_deg at width x
+    height."""
     return math.degrees(2.0 * math.atan(0.5 * height / focal_length(width, hfov_deg)))
 
 

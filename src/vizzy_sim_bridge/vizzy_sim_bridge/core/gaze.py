@@ -186,18 +186,19 @@ def fixation_point(positions: Mapping[str, float] | Sequence[float] | np.ndarray
     ahead of the cameras' midpoint along the mean optical axis.
     """
     q = as_joint_array(positions)
-    return kinematics.fixation_from_joints(dict(zip(kinematics.JOINT_NAMES, q.tolist())), max_distance)
+    return kinematics.fixation_from_joints(
+        dict(zip(kinematics.JOINT_NAMES, q.tolist(), strict=True)), max_distance)
 
 
 # --- validation -----------------------------------------------------------------------------------
 
-def check_finite_point(point: Sequence[float]) -> np.ndarray:
+def check_finite_point(point: Sequence[float] | np.ndarray) -> np.ndarray:
     """The point as an array; GazeError(REJECTED_NAN) naming the bad coordinate if not finite."""
     p = np.asarray([float(c) for c in point], dtype=float)
     if p.shape != (3,):
         raise GazeError(GazeStatus.REJECTED_INVALID, f'a fixation point has 3 coordinates, '
                                                      f'got {len(p)}')
-    for axis, value in zip('xyz', p):
+    for axis, value in zip('xyz', p, strict=True):
         if not math.isfinite(value):
             raise GazeError(GazeStatus.REJECTED_NAN, f'fixation_point.{axis} is {value}')
     return p
@@ -207,7 +208,8 @@ def check_finite_point(point: Sequence[float]) -> np.ndarray:
 JOINT_LIMIT_TOLERANCE_RAD = 1e-9
 
 
-def joint_targets(names: Sequence[str], positions: Sequence[float], current: np.ndarray) -> np.ndarray:
+def joint_targets(names: Sequence[str], positions: Sequence[float],
+                  current: np.ndarray) -> np.ndarray:
     """Joint targets in JOINT_NAMES order; joints not named keep current.
 
     Raises GazeError, as GazeState.msg defines: REJECTED_INVALID for no joints, a length
@@ -227,18 +229,18 @@ def joint_targets(names: Sequence[str], positions: Sequence[float], current: np.
     if unknown:
         raise GazeError(GazeStatus.REJECTED_INVALID,
                         f'unknown joints {unknown}; known: {list(kinematics.JOINT_NAMES)}')
-    for name, value in zip(names, values):
+    for name, value in zip(names, values, strict=True):
         if not math.isfinite(value):
             raise GazeError(GazeStatus.REJECTED_NAN, f'{name} target is {value}')
     outside = []
-    for name, value in zip(names, values):
+    for name, value in zip(names, values, strict=True):
         lo, hi = kinematics.JOINT_LIMITS[name]
         if not lo - JOINT_LIMIT_TOLERANCE_RAD <= value <= hi + JOINT_LIMIT_TOLERANCE_RAD:
             outside.append(f'{name} target {value:.4f} rad outside its limits [{lo:.4f}, {hi:.4f}]')
     if outside:
         raise GazeError(GazeStatus.REJECTED_UNREACHABLE, '; '.join(outside))
     target = np.array(current, dtype=float)
-    for name, value in zip(names, values):
+    for name, value in zip(names, values, strict=True):
         lo, hi = kinematics.JOINT_LIMITS[name]
         target[_index(name)] = min(max(value, lo), hi)  # within the tolerance: onto the limit
     return target
@@ -330,7 +332,7 @@ def _describe(point: np.ndarray) -> str:
     return '(' + ', '.join(f'{c:.3f}' for c in point) + ') m in ' + BASE_FRAME
 
 
-def solve_fixation(point: Sequence[float], split: GazeSplit = GazeSplit(),
+def solve_fixation(point: Sequence[float] | np.ndarray, split: GazeSplit = GazeSplit(),
                    min_distance: float = 0.15, max_distance: float = 10.0) -> FixationSolution:
     """Joint positions whose two optical axes both pass through point (base_link, metres).
 

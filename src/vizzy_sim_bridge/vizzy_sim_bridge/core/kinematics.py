@@ -124,7 +124,8 @@ def quaternion_about(axis: str, angle: float) -> tuple[float, float, float, floa
     return {'x': (s, 0.0, 0.0, c), 'y': (0.0, s, 0.0, c), 'z': (0.0, 0.0, s, c)}[axis]
 
 
-def quaternion_multiply(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float, float]:
+def quaternion_multiply(a: Sequence[float],
+                        b: Sequence[float]) -> tuple[float, float, float, float]:
     """Hamilton product a * b of quaternions (x, y, z, w)."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -159,17 +160,18 @@ def matrix_to_quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
         s = 2.0 * math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
         q = ((r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s, (r[1, 0] - r[0, 1]) / s)
     n = math.sqrt(sum(c * c for c in q))
-    q = tuple(c / n for c in q)
-    return q if q[3] >= 0.0 else tuple(-c for c in q)  # type: ignore[return-value]
+    q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+    return q if q[3] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
 
 
 def joint_vector(positions: Mapping[str, float] | Sequence[float]) -> dict[str, float]:
-    """Joint positions by name, from a mapping (missing joints: 0) or a sequence in JOINT_NAMES order."""
+    """Joint positions by name, from a mapping (missing joints: 0) or a sequence in JOINT_NAMES
+    order."""
     if isinstance(positions, Mapping):
         return {name: float(positions.get(name, 0.0)) for name in JOINT_NAMES}
     if len(positions) != len(JOINT_NAMES):
         raise ValueError(f'expected {len(JOINT_NAMES)} joint positions, got {len(positions)}')
-    return {name: float(v) for name, v in zip(JOINT_NAMES, positions)}
+    return {name: float(v) for name, v in zip(JOINT_NAMES, positions, strict=True)}
 
 
 def joint_transforms(positions: Mapping[str, float] | Sequence[float]) -> list[Transform]:
@@ -252,7 +254,8 @@ def camera_poses(positions: Mapping[str, float] | Sequence[float]) -> dict[str, 
 
 
 def eye_joints(version: float, vergence: float) -> tuple[float, float]:
-    """(l_eye_joint, r_eye_joint) [rad] for a version and vergence [rad] (inverse of gaze_angles)."""
+    """(l_eye_joint, r_eye_joint) [rad] for a version and vergence [rad] (inverse of
+    gaze_angles)."""
     return version - vergence / 2.0, version + vergence / 2.0
 
 

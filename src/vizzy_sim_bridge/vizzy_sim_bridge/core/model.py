@@ -28,12 +28,33 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .camera import (EYE_HEIGHT, EYE_HFOV_DEG, EYE_WIDTH, RGBD_HEIGHT, RGBD_HFOV_DEG, RGBD_WIDTH,
-                     fovy_deg)
-from .kinematics import (CAMERA_FORWARD, EGO_HEIGHT, EYE_OFFSET, EYES_TILT_FORWARD, EYES_TILT_UP,
-                         JOINT_LIMITS, JOINT_NAMES, NECK_PAN_HEIGHT, NECK_TILT_ABOVE_PAN,
-                         OPTICAL_ROTATION, RGBD_MOUNT, RGBD_PITCH, VELOCITY_LIMITS, WAIST_HEIGHT,
-                         clamp_to_limits, quaternion_about)
+from .camera import (
+    EYE_HEIGHT,
+    EYE_HFOV_DEG,
+    EYE_WIDTH,
+    RGBD_HEIGHT,
+    RGBD_HFOV_DEG,
+    RGBD_WIDTH,
+    fovy_deg,
+)
+from .kinematics import (
+    CAMERA_FORWARD,
+    EGO_HEIGHT,
+    EYE_OFFSET,
+    EYES_TILT_FORWARD,
+    EYES_TILT_UP,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    NECK_PAN_HEIGHT,
+    NECK_TILT_ABOVE_PAN,
+    OPTICAL_ROTATION,
+    RGBD_MOUNT,
+    RGBD_PITCH,
+    VELOCITY_LIMITS,
+    WAIST_HEIGHT,
+    clamp_to_limits,
+    quaternion_about,
+)
 from .scenes import Scene
 
 TIMESTEP = 0.002   # [s]: physics at 500 Hz
@@ -101,6 +122,10 @@ def head_xml(gains: Mapping[str, tuple[float, float]] | None = None, *,
     ])
     eye_inertial = (f'<inertial pos="0 0 0" mass="{MASSES["eye"]}" '
                     f'diaginertia="1.5e-4 1.5e-4 1.5e-4"/>')
+    tilt_inertial = (f'<inertial pos="0.03 0 0.03" mass="{MASSES["neck_tilt_link"]}" '
+                     f'diaginertia="8.5e-4 8.2e-4 3.0e-4"/>')
+    eyes_bar = _geom(f'type="capsule" fromto="-0.01 {-EYE_OFFSET + 0.03:.9g} -0.025 '
+                     f'-0.01 {EYE_OFFSET - 0.03:.9g} -0.025" size="0.008"', '0.2 0.2 0.2 1')
     opt = OPTICAL_ROTATION
 
     def eye(side: str, joint: str, y: float) -> str:
@@ -121,7 +146,7 @@ def head_xml(gains: Mapping[str, tuple[float, float]] | None = None, *,
     {_geom('type="cylinder" pos="0 0 0.2" size="0.03 0.17"')}
     <body name="neck_tilt_link" pos="0 0 {NECK_TILT_ABOVE_PAN:.9g}" gravcomp="1">
       {_joint('neck_tilt_joint', '0 1 0', arm['neck_tilt_joint'])}
-      <inertial pos="0.03 0 0.03" mass="{MASSES['neck_tilt_link']}" diaginertia="8.5e-4 8.2e-4 3.0e-4"/>
+      {tilt_inertial}
       {_geom('type="ellipsoid" pos="0.02 0 0.06" size="0.09 0.13 0.11"')}
       <body name="rgbd_camera_link" pos="{_f(*RGBD_MOUNT)}" quat="{_mj_quat(rgbd_q)}" gravcomp="1">
         <inertial pos="0 0 0" mass="{MASSES['rgbd']}" diaginertia="5.8e-4 3.1e-5 5.9e-4"/>
@@ -132,7 +157,7 @@ def head_xml(gains: Mapping[str, tuple[float, float]] | None = None, *,
       <body name="eyes_tilt_link" pos="{_f(EYES_TILT_FORWARD, 0.0, EYES_TILT_UP)}" gravcomp="1">
         {_joint('eyes_tilt_joint', '0 1 0', arm['eyes_tilt_joint'])}
         <inertial pos="0 0 0" mass="{MASSES['eyes_tilt_link']}" diaginertia="1.3e-3 1.3e-4 1.3e-3"/>
-        {_geom(f'type="capsule" fromto="-0.01 {-EYE_OFFSET + 0.03:.9g} -0.025 -0.01 {EYE_OFFSET - 0.03:.9g} -0.025" size="0.008"', '0.2 0.2 0.2 1')}
+        {eyes_bar}
         {_site('cyclopean', (0.0, 0.0, 0.0))}
         {eye('left', 'l_eye_joint', EYE_OFFSET)}
         {eye('right', 'r_eye_joint', -EYE_OFFSET)}
@@ -153,6 +178,8 @@ def _mjcf(worldbody_robot: str, actuators: str, scene: Scene | None, offwidth: i
           offheight: int) -> str:
     scene_assets = scene.assets_xml if scene else ''
     scene_body = scene.worldbody_xml if scene else ''
+    sun = ('<light name="sun" directional="true" pos="0 0 6" dir="0.25 0.15 -1" '
+           'diffuse="0.55 0.55 0.55" specular="0.1 0.1 0.1" castshadow="false"/>')
     return f"""<mujoco model="vizzy_head{'_' + scene.name if scene else ''}">
 <compiler angle="radian" autolimits="true"/>
 <option timestep="{TIMESTEP}" integrator="implicitfast">
@@ -169,7 +196,7 @@ def _mjcf(worldbody_robot: str, actuators: str, scene: Scene | None, offwidth: i
 {scene_assets}
 </asset>
 <worldbody>
-<light name="sun" directional="true" pos="0 0 6" dir="0.25 0.15 -1" diffuse="0.55 0.55 0.55" specular="0.1 0.1 0.1" castshadow="false"/>
+{sun}
 {worldbody_robot}
 {scene_body}
 </worldbody>
@@ -294,12 +321,13 @@ class HeadSimulation:
                     self._target[i] = clamped[name]
                     s = (speeds or {}).get(name)
                     self._speed[i] = (min(float(s), self._vmax[i])
-                                      if s is not None and math.isfinite(s) and s > 0 else self._vmax[i])
+                                      if s is not None and math.isfinite(s) and s > 0
+                                      else self._vmax[i])
         return notes
 
     def targets(self) -> dict[str, float]:
         with self.lock:
-            return dict(zip(JOINT_NAMES, self._target.tolist()))
+            return dict(zip(JOINT_NAMES, self._target.tolist(), strict=True))
 
     # ---- stepping
     def step(self, n: int = 1) -> None:

@@ -42,8 +42,9 @@ and the limb bodies gravcomp = 1, so physics steps leave the poses as update() s
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -94,7 +95,8 @@ def gait_angles(phase: np.ndarray | float, hip_amplitude_deg: float = 22.0
     c = np.cos(2.0 * np.pi * ph)
     hip = 5.0 + hip_amplitude_deg * c
     knee = 4.0 + 14.0 * _gauss(ph, 0.13, 0.06) + 58.0 * _gauss(ph, 0.72, 0.10)
-    foot = 15.0 * _gauss(ph, 0.0, 0.05) + 6.0 * _gauss(ph, 0.9, 0.06) - 35.0 * _gauss(ph, 0.58, 0.07)
+    foot = (15.0 * _gauss(ph, 0.0, 0.05) + 6.0 * _gauss(ph, 0.9, 0.06)
+            - 35.0 * _gauss(ph, 0.58, 0.07))
     shoulder = 3.0 - 0.75 * hip_amplitude_deg * c
     elbow = 15.0 + 15.0 * (1.0 - c) / 2.0
     shank = hip - knee  # shank pitch from the vertical, forward positive
@@ -385,7 +387,8 @@ class PedestrianCrowd:
             index=index, body=body, speed=speed, stride=stride, hip_amplitude_deg=hip_amp,
             phase0=float(rng.random()), s0=float(rng.uniform(0, length)),
             path_s=s, path_xy=xy, path_heading=heading, length=length,
-            shirt=pick(SHIRT_COLOURS), shirt_pattern=str(rng.choice(['plain', 'checker', 'stripes'])),
+            shirt=pick(SHIRT_COLOURS),
+            shirt_pattern=str(rng.choice(['plain', 'checker', 'stripes'])),
             trousers=pick(TROUSER_COLOURS), skin=pick(SKIN_COLOURS, 0.02),
             hair=pick(HAIR_COLOURS, 0.02), shoes=pick(SHOE_COLOURS, 0.02),
             long_hair=bool(rng.random() < 0.3), long_sleeves=bool(rng.random() < 0.6))
@@ -417,14 +420,16 @@ class PedestrianCrowd:
                        f'height="64" {tex}/>')
             dark = tuple(0.75 * c for c in p.trousers)
             out.append(f'<texture name="{self._name(i, "trousers")}" type="2d" builtin="flat" '
-                       f'width="64" height="64" rgb1="{_fmt(*p.trousers)}" rgb2="{_fmt(*p.trousers)}" '
+                       f'width="64" height="64" rgb1="{_fmt(*p.trousers)}" '
+                       f'rgb2="{_fmt(*p.trousers)}" '
                        f'mark="random" random="0.15" markrgb="{_fmt(*dark)}"/>')
             streak = tuple(min(1.0, 1.4 * c + 0.05) for c in p.hair)
             out.append(f'<texture name="{self._name(i, "hair")}" type="2d" builtin="flat" '
                        f'width="32" height="32" rgb1="{_fmt(*p.hair)}" rgb2="{_fmt(*p.hair)}" '
                        f'mark="random" random="0.15" markrgb="{_fmt(*streak)}"/>')
             for part, rep in (('shirt', repeat), ('trousers', '4 4'), ('hair', '4 4')):
-                out.append(f'<material name="{self._name(i, part)}" texture="{self._name(i, part)}" '
+                out.append(f'<material name="{self._name(i, part)}" '
+                           f'texture="{self._name(i, part)}" '
                            f'texrepeat="{rep}" specular="0.05" shininess="0.05"/>')
             out.append(f'<material name="{self._name(i, "skin")}" rgba="{_fmt(*p.skin)} 1" '
                        f'specular="0.15" shininess="0.2"/>')
@@ -460,6 +465,7 @@ class PedestrianCrowd:
         sleeve = 'shirt' if p.long_sleeves else 'skin'
         z_sh, y_sh = 0.288 * b.height, 0.185 * w  # shoulder joints above the hip joints
         z_head = 0.405 * b.height                  # head centre above the hip joints
+        z_yoke = z_sh - 0.015 * s                  # the shoulders' capsule, just below the joints
         lines = [
             f'<body name="{n("root")}" mocap="true" pos="{_fmt(xy[0], xy[1], 0)}" '
             f'quat="{_fmt(math.cos(heading / 2), 0, 0, math.sin(heading / 2))}">',
@@ -473,19 +479,20 @@ class PedestrianCrowd:
             '   ' + geom('chest', 'ellipsoid', (0.12 * w, 0.175 * w, 0.19 * s), 'shirt',
                          f'pos="{_fmt(0.01 * s, 0, 0.35 * s)}"'),
             '   ' + geom('shoulders', 'capsule', (0.065 * w,), 'shirt',
-                         f'fromto="{_fmt(0, -0.15 * w, z_sh - 0.015 * s, 0, 0.15 * w, z_sh - 0.015 * s)}"'),
+                         f'fromto="{_fmt(0, -0.15 * w, z_yoke, 0, 0.15 * w, z_yoke)}"'),
             '   ' + geom('neck', 'capsule', (0.052 * s,), 'skin',
                          f'fromto="{_fmt(0, 0, z_sh - 0.03 * s, 0.005, 0, z_head - 0.07 * s)}"'),
             '   ' + body('head', (0.01 * s, 0, z_head)),
-            '    ' + geom('head', 'ellipsoid', (0.097 * s, 0.078 * s, 0.115 * s), 'skin', 'pos="0 0 0"'),
+            '    ' + geom('head', 'ellipsoid', (0.097 * s, 0.078 * s, 0.115 * s), 'skin',
+                          'pos="0 0 0"'),
             '    ' + geom('hair', 'ellipsoid', (0.1 * s, 0.083 * s, 0.085 * s), 'hair',
                           f'pos="{_fmt(-0.014 * s, 0, 0.04 * s)}"'),
             '    ' + geom('nose', 'ellipsoid', (0.02 * s, 0.014 * s, 0.025 * s), 'skin',
                           f'pos="{_fmt(0.09 * s, 0, -0.01 * s)}"'),
         ]
         if p.long_hair:
-            lines.append('    ' + geom('long_hair', 'ellipsoid', (0.06 * s, 0.09 * s, 0.14 * s), 'hair',
-                                       f'pos="{_fmt(-0.06 * s, 0, -0.06 * s)}"'))
+            lines.append('    ' + geom('long_hair', 'ellipsoid', (0.06 * s, 0.09 * s, 0.14 * s),
+                                       'hair', f'pos="{_fmt(-0.06 * s, 0, -0.06 * s)}"'))
         lines.append('   </body>')
         for side, sign in (('l', 1.0), ('r', -1.0)):
             lines += [  # arms hang 7 deg out from the body
@@ -498,8 +505,8 @@ class PedestrianCrowd:
                 '     ' + joint(side + '_elbow', '0 -1 0'),
                 '     ' + geom(side + '_forearm', 'capsule', (0.041 * w,), sleeve,
                                f'fromto="{_fmt(0, 0, 0, 0, 0, -b.forearm)}"'),
-                '     ' + geom(side + '_hand', 'ellipsoid', (0.028 * s, 0.042 * s, 0.08 * s), 'skin',
-                               f'pos="{_fmt(0.005, 0, -b.forearm - 0.07 * s)}"'),
+                '     ' + geom(side + '_hand', 'ellipsoid', (0.028 * s, 0.042 * s, 0.08 * s),
+                               'skin', f'pos="{_fmt(0.005, 0, -b.forearm - 0.07 * s)}"'),
                 '    </body>',
                 '   </body>',
             ]
@@ -650,7 +657,7 @@ def geom_aabb(model: Any, data: Any, geom_ids: Sequence[int] | np.ndarray
     size = np.asarray(model.geom_size)[ids]
     gtype = np.asarray(model.geom_type)[ids]
     ext = np.empty_like(pos)
-    for k, (typ, r, sz) in enumerate(zip(gtype, rot, size)):
+    for k, (typ, r, sz) in enumerate(zip(gtype, rot, size, strict=True)):
         if typ == 2:    # sphere
             e = np.full(3, sz[0])
         elif typ == 3:  # capsule

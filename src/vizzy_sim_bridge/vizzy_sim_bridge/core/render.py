@@ -112,7 +112,8 @@ def gl_context_class(backend: str) -> Any:
         else:
             from mujoco.osmesa import GLContext
     except Exception as exc:  # ImportError, OSError from ctypes, PyOpenGL errors
-        raise RendererUnavailable(unavailable_message({backend: f'{type(exc).__name__}: {exc}'})) from exc
+        raise RendererUnavailable(
+            unavailable_message({backend: f'{type(exc).__name__}: {exc}'})) from exc
     return GLContext
 
 
@@ -206,14 +207,14 @@ class CameraRenderer:
         finally:
             self._gl.free()
 
-    def __enter__(self) -> 'CameraRenderer':
+    def __enter__(self) -> CameraRenderer:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
     def __del__(self) -> None:
-        try:
+        try:  # noqa: SIM105 (no contextlib in __del__: module globals may be gone at shutdown)
             self.close()
         except Exception:  # interpreter shutdown: OpenGL may already be gone
             pass

@@ -56,7 +56,8 @@ def pack_rgb(rgb: np.ndarray) -> np.ndarray:
 def unpack_rgb(packed: np.ndarray) -> np.ndarray:
     """Inverse of pack_rgb: ... x 3 uint8."""
     bits = np.ascontiguousarray(packed, dtype=np.float32).view(np.uint32)
-    return np.stack([(bits >> 16) & 0xFF, (bits >> 8) & 0xFF, bits & 0xFF], axis=-1).astype(np.uint8)
+    return np.stack([(bits >> 16) & 0xFF, (bits >> 8) & 0xFF, bits & 0xFF],
+                    axis=-1).astype(np.uint8)
 
 
 class DepthProjector:

@@ -24,8 +24,9 @@ Scenes:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import cv2
 import numpy as np
@@ -39,7 +40,8 @@ BASE_IN_WORLD = np.array([0.0, 0.0, WAIST_HEIGHT])
 # Soda can (330 ml): 66 mm diameter, 122 mm high.
 CAN_RADIUS, CAN_HEIGHT = 0.033, 0.122
 # Table: top surface 0.72 m above the floor, 0.8 m deep x 1.2 m wide, front edge 0.40 m ahead.
-TABLE_TOP_Z, TABLE_CENTER_X, TABLE_DEPTH, TABLE_WIDTH, TABLE_THICKNESS = 0.72, 0.80, 0.80, 1.20, 0.03
+TABLE_TOP_Z, TABLE_CENTER_X, TABLE_DEPTH, TABLE_WIDTH, TABLE_THICKNESS = (
+    0.72, 0.80, 0.80, 1.20, 0.03)
 
 
 class SceneUnavailable(RuntimeError):
@@ -145,7 +147,7 @@ def _mj_quat(q: tuple[float, float, float, float]) -> str:
     return _f(q[3], q[0], q[1], q[2])
 
 
-def _rgba(c: tuple[float, float, float, float]) -> str:
+def _rgba(c: tuple[float, ...]) -> str:
     return _f(*c)
 
 
@@ -173,7 +175,8 @@ def rich_texture(rng: np.random.Generator, size: int = 1024) -> np.ndarray:
         colors = rng.integers(0, 256, (n, 3))
         kinds = rng.integers(0, 3, n)
         angles = rng.uniform(0, 180, n)
-        for (cx, cy), (ex, ey), col, kind, ang in zip(centres, extents, colors, kinds, angles):
+        for (cx, cy), (ex, ey), col, kind, ang in zip(centres, extents, colors, kinds, angles,
+                                                      strict=True):
             color = tuple(int(c) for c in col)
             if kind == 0:
                 cv2.rectangle(img, (int(cx - ex), int(cy - ey)), (int(cx + ex), int(cy + ey)),
@@ -197,7 +200,7 @@ def wood_texture(rng: np.random.Generator, size: int = 512) -> np.ndarray:
         phase = rng.uniform(0, 2 * np.pi)
         warp += np.sin(2 * np.pi * k * x + phase) / (2.0 * k)
     grain = 0.5 + 0.5 * np.sin(2 * np.pi * (18.0 * y + 1.5 * warp))
-    fine = rng.normal(0.0, 0.06, (size, size)).astype(np.float32)
+    fine: np.ndarray = rng.normal(0.0, 0.06, (size, size)).astype(np.float32)
     fine = cv2.GaussianBlur(fine, (0, 0), sigmaX=3.0, sigmaY=0.6)
     t = np.clip(0.55 * grain + 0.45 + fine, 0.0, 1.0)
     light = np.array([205, 160, 110], np.float32)
@@ -220,11 +223,12 @@ def _plane_quat(normal: np.ndarray) -> tuple[float, float, float, float]:
 def _textured_plane(name: str, material: str, pos: np.ndarray, normal: np.ndarray,
                     half: tuple[float, float]) -> str:
     """A plane geom facing normal, centred at pos (world); half = (half width, half height)."""
-    return (f'<geom name="{name}" type="plane" pos="{_f(*pos)}" quat="{_mj_quat(_plane_quat(normal))}" '
+    return (f'<geom name="{name}" type="plane" pos="{_f(*pos)}" '
+            f'quat="{_mj_quat(_plane_quat(normal))}" '
             f'size="{_f(half[0], half[1], 0.5)}" material="{material}"/>')
 
 
-def _room(b: '_Builder', half_x: float, half_y: float, height: float,
+def _room(b: _Builder, half_x: float, half_y: float, height: float,
           rgba: str = '0.78 0.76 0.72 1', ceiling: str = '0.9 0.9 0.88 1',
           emission: float = 0.0) -> None:
     """Plain walls and a ceiling around the robot (world frame, centred on it): cheap to render,
@@ -247,7 +251,7 @@ def _room(b: '_Builder', half_x: float, half_y: float, height: float,
                   f'size="{_f(half_x, half_y, 0.5)}" material="room_ceiling"/>')
 
 
-def _world(p_base: np.ndarray) -> np.ndarray:
+def _world(p_base: np.ndarray | Sequence[float]) -> np.ndarray:
     return np.asarray(p_base, dtype=np.float64) + BASE_IN_WORLD
 
 
@@ -265,12 +269,14 @@ class _Builder:
         self.textures: dict[str, bytes] = {}
         self.objects: list[SceneObject] = []
 
-    def texture(self, name: str, image: np.ndarray, repeat: tuple[float, float] = (1.0, 1.0)) -> str:
+    def texture(self, name: str, image: np.ndarray,
+                repeat: tuple[float, float] = (1.0, 1.0)) -> str:
         """Register a PNG texture and a material using it; returns the material name."""
         file = f'{name}.png'
         self.textures[file] = png_bytes(image)
         self.assets.append(f'<texture name="{name}_tex" type="2d" file="{file}"/>')
-        self.assets.append(f'<material name="{name}" texture="{name}_tex" texrepeat="{_f(*repeat)}" '
+        self.assets.append(f'<material name="{name}" texture="{name}_tex" '
+                           f'texrepeat="{_f(*repeat)}" '
                            f'specular="0.05" shininess="0.1" reflectance="0"/>')
         return name
 
@@ -306,10 +312,13 @@ def _cylinder_truth(name: str, kind: str, pos_w: np.ndarray, axis: np.ndarray, r
                 axis=(float(a[0]), float(a[1]), float(a[2])), lid=lid, role=role)
 
 
-def _can_bands(radius: float, height: float, band: tuple[float, ...], rim: tuple[float, ...]) -> str:
+def _can_bands(radius: float, height: float, band: tuple[float, ...],
+               rim: tuple[float, ...]) -> str:
     """A printed band and metal rims around a can (body coordinates, axis z)."""
-    return (f'<geom type="cylinder" size="{_f(radius + 0.0005, height * 0.18)}" rgba="{_rgba(band)}"/>'
-            f'<geom type="cylinder" pos="0 0 {height / 2 - 0.004:.6g}" size="{_f(radius - 0.004, 0.0045)}" '
+    return (f'<geom type="cylinder" size="{_f(radius + 0.0005, height * 0.18)}" '
+            f'rgba="{_rgba(band)}"/>'
+            f'<geom type="cylinder" pos="0 0 {height / 2 - 0.004:.6g}" '
+            f'size="{_f(radius - 0.004, 0.0045)}" '
             f'rgba="{_rgba(rim)}"/>')
 
 
@@ -337,12 +346,14 @@ def _place(rng: np.random.Generator, placed: list[tuple[float, float, float]], f
 
 
 def tabletop(seed: int) -> Scene:
-    """A table with cylinders (cans, bottles, jars with lids, a lying can, a pipe) and distractors."""
+    """A table with cylinders (cans, bottles, jars with lids, a lying can, a pipe) and
+    distractors."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
     b = _Builder()
     # the floor is plain: under the table it is barely seen, and each texture costs ~2.5 ms of
     # CPU rendering per image
-    b.assets.append('<material name="floor" rgba="0.5 0.5 0.47 1" specular="0.05" reflectance="0"/>')
+    b.assets.append('<material name="floor" rgba="0.5 0.5 0.47 1" specular="0.05" '
+                    'reflectance="0"/>')
     wood = b.texture('table_wood', wood_texture(rng), (2.0, 2.0))
     wall = b.texture('tabletop_wall', rich_texture(rng, 512), (3.0, 1.5))
     b.body.append('<geom name="floor" type="plane" size="4 4 0.5" material="floor"/>')
@@ -353,15 +364,19 @@ def tabletop(seed: int) -> Scene:
     # the table: a top and four legs (support), top surface textured
     top_c = _world([TABLE_CENTER_X, 0.0, 0.0])
     top_c[2] = TABLE_TOP_Z - TABLE_THICKNESS / 2.0
+    leg_x, leg_y = TABLE_DEPTH / 2 - 0.05, TABLE_WIDTH / 2 - 0.05
     legs = ''.join(
-        f'<geom type="box" pos="{_f(sx * (TABLE_DEPTH / 2 - 0.05), sy * (TABLE_WIDTH / 2 - 0.05), -(TABLE_TOP_Z) / 2.0)}" '
-        f'size="{_f(0.025, 0.025, (TABLE_TOP_Z - TABLE_THICKNESS) / 2.0)}" rgba="0.3 0.22 0.15 1"/>'
+        f'<geom type="box" pos="{_f(sx * leg_x, sy * leg_y, -(TABLE_TOP_Z) / 2.0)}" '
+        f'size="{_f(0.025, 0.025, (TABLE_TOP_Z - TABLE_THICKNESS) / 2.0)}" '
+        f'rgba="0.3 0.22 0.15 1"/>'
         for sx in (-1, 1) for sy in (-1, 1))
     table_xml = (f'<body name="table" pos="{_f(*top_c)}">'
-                 f'<geom type="box" size="{_f(TABLE_DEPTH / 2, TABLE_WIDTH / 2, TABLE_THICKNESS / 2)}" '
+                 f'<geom type="box" '
+                 f'size="{_f(TABLE_DEPTH / 2, TABLE_WIDTH / 2, TABLE_THICKNESS / 2)}" '
                  f'rgba="0.45 0.32 0.2 1"/>'
                  f'<geom type="plane" pos="0 0 {TABLE_THICKNESS / 2 + 0.0005:.6g}" '
-                 f'size="{_f(TABLE_DEPTH / 2, TABLE_WIDTH / 2, 0.1)}" material="{wood}"/>{legs}</body>')
+                 f'size="{_f(TABLE_DEPTH / 2, TABLE_WIDTH / 2, 0.1)}" material="{wood}"/>'
+                 f'{legs}</body>')
     b.add(dict(name='table', kind='table', shape='box', position=_base(top_c),
                orientation=(0.0, 0.0, 0.0, 1.0),
                size=(TABLE_DEPTH, TABLE_WIDTH, TABLE_THICKNESS), color=(0.45, 0.32, 0.2, 1.0),
@@ -401,9 +416,11 @@ def tabletop(seed: int) -> Scene:
         x, y = _place(rng, placed, r + 0.004, xr, yr)
         p = on_table(x, y, h / 2)
         neck_h = 0.06
-        extra = (f'<geom type="cylinder" pos="0 0 {h / 2 + neck_h / 2:.6g}" size="{_f(0.013, neck_h / 2)}" '
+        extra = (f'<geom type="cylinder" pos="0 0 {h / 2 + neck_h / 2:.6g}" '
+                 f'size="{_f(0.013, neck_h / 2)}" '
                  f'rgba="{_rgba(color)}"/>'
-                 f'<geom type="cylinder" pos="0 0 {h / 2 + neck_h + 0.01:.6g}" size="{_f(0.015, 0.01)}" '
+                 f'<geom type="cylinder" pos="0 0 {h / 2 + neck_h + 0.01:.6g}" '
+                 f'size="{_f(0.015, 0.01)}" '
                  f'rgba="0.9 0.9 0.9 1"/>'
                  f'<geom type="cylinder" size="{_f(r + 0.0005, h * 0.2)}" rgba="0.95 0.9 0.75 1"/>')
         name = f'bottle_{i}'
@@ -473,9 +490,12 @@ def tabletop(seed: int) -> Scene:
     q = quat_yaw(yaw)
     hz = (post_h + rr) / 2
     handle = (f'<body name="handle_0" pos="{_f(*p)}" quat="{_mj_quat(q)}">'
-              f'<geom type="capsule" fromto="{_f(-span / 2, 0, -hz + rr, -span / 2, 0, hz - rr)}" size="{rr}" rgba="0.15 0.15 0.15 1"/>'
-              f'<geom type="capsule" fromto="{_f(span / 2, 0, -hz + rr, span / 2, 0, hz - rr)}" size="{rr}" rgba="0.15 0.15 0.15 1"/>'
-              f'<geom type="capsule" fromto="{_f(-span / 2, 0, hz - rr, span / 2, 0, hz - rr)}" size="{rr}" rgba="0.15 0.15 0.15 1"/>'
+              f'<geom type="capsule" fromto="{_f(-span / 2, 0, -hz + rr, -span / 2, 0, hz - rr)}" '
+              f'size="{rr}" rgba="0.15 0.15 0.15 1"/>'
+              f'<geom type="capsule" fromto="{_f(span / 2, 0, -hz + rr, span / 2, 0, hz - rr)}" '
+              f'size="{rr}" rgba="0.15 0.15 0.15 1"/>'
+              f'<geom type="capsule" fromto="{_f(-span / 2, 0, hz - rr, span / 2, 0, hz - rr)}" '
+              f'size="{rr}" rgba="0.15 0.15 0.15 1"/>'
               f'</body>')
     b.add(dict(name='handle_0', kind='handle', shape='box', position=_base(p), orientation=q,
                size=(span + 2 * rr, 2 * rr, post_h + rr), color=(0.15, 0.15, 0.15, 1.0)), handle)
@@ -529,7 +549,8 @@ def visual_search(seed: int, n_cans: int = 8) -> Scene:
                    axis=(0.0, 0.0, 1.0), role='support'),
               f'<body name="stand_{i}" pos="{_f(*stand)}"><geom type="cylinder" '
               f'size="{_f(0.01, bottom / 2)}" rgba="0.3 0.3 0.3 1"/><geom type="cylinder" '
-              f'pos="0 0 {-bottom / 2 + 0.005:.6g}" size="0.08 0.005" rgba="0.25 0.25 0.25 1"/></body>')
+              f'pos="0 0 {-bottom / 2 + 0.005:.6g}" size="0.08 0.005" '
+              f'rgba="0.25 0.25 0.25 1"/></body>')
 
     # the nearest can: outside both cameras' initial field of view (|azimuth| > 55 deg)
     side = 1.0 if rng.random() < 0.5 else -1.0
@@ -650,10 +671,11 @@ def pedestrian_boxes(raw: list[dict[str, Any]]) -> list[dict[str, Any]]:
         else:
             center = np.asarray(box.get('center', box.get('position')), float)
             size = np.asarray(box.get('size', box.get('dimensions', box.get('extents'))), float)
+        q: tuple[float, ...]
         if lo_key and hi_key:
             q = (0.0, 0.0, 0.0, 1.0)
         elif 'quaternion' in box or 'orientation' in box:
-            q = tuple(float(v) for v in box.get('quaternion', box.get('orientation')))
+            q = tuple(float(v) for v in box['quaternion' if 'quaternion' in box else 'orientation'])
         else:
             q = quat_yaw(float(box.get('yaw', 0.0)))
         out.append({'id': int(box.get('id', k)), 'center': _base(center),

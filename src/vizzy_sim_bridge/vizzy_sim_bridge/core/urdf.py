@@ -35,9 +35,18 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from .kinematics import (FRAME_NAMES, JOINT_LIMITS, JOINT_NAMES, VELOCITY_LIMITS, Transform,
-                         joint_transforms, quaternion_multiply, rotation_matrix,
-                         static_transforms, world_transform)
+from .kinematics import (
+    FRAME_NAMES,
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    VELOCITY_LIMITS,
+    Transform,
+    joint_transforms,
+    quaternion_multiply,
+    rotation_matrix,
+    static_transforms,
+    world_transform,
+)
 from .model import ROBOT_GROUP, compile_model
 
 ROBOT_NAME = 'vizzy_head'
@@ -80,7 +89,7 @@ def _conjugate(q: Sequence[float]) -> tuple[float, float, float, float]:
 def _joint_of(name: str, at_zero: list[Transform]) -> tuple[int, tuple[float, float, float]]:
     """(index into joint_transforms(), unit axis in the child frame) of joint name."""
     moved = joint_transforms({name: _PROBE_ANGLE})
-    changed = [i for i, (a, b) in enumerate(zip(at_zero, moved))
+    changed = [i for i, (a, b) in enumerate(zip(at_zero, moved, strict=True))
                if not np.allclose(a.rotation, b.rotation, rtol=0.0, atol=1e-12)]
     if len(changed) != 1:
         raise RuntimeError(f'{name} moves {len(changed)} transforms of joint_transforms(), '
@@ -90,16 +99,16 @@ def _joint_of(name: str, at_zero: list[Transform]) -> tuple[int, tuple[float, fl
         raise RuntimeError(f'{name} translates its child: not a revolute joint')
     rel = quaternion_multiply(_conjugate(at_zero[i].rotation), moved[i].rotation)
     if rel[3] < 0.0:
-        rel = tuple(-c for c in rel)
+        rel = (-rel[0], -rel[1], -rel[2], -rel[3])
     axis = np.asarray(rel[:3]) / math.sin(_PROBE_ANGLE / 2.0)
     axis /= np.linalg.norm(axis)
-    return i, tuple(float(v) for v in axis)  # type: ignore[return-value]
+    return i, (float(axis[0]), float(axis[1]), float(axis[2]))
 
 
 def joint_specs(world: bool = False) -> list[JointSpec]:
     """Every joint of the URDF, parents before children, from kinematics' /tf functions."""
     at_zero = joint_transforms({})
-    revolute = {}
+    revolute: dict[int, tuple[str, tuple[float, float, float]]] = {}
     for name in JOINT_NAMES:
         i, axis = _joint_of(name, at_zero)
         if i in revolute:
@@ -107,8 +116,9 @@ def joint_specs(world: bool = False) -> list[JointSpec]:
         revolute[i] = (name, axis)
 
     def spec(t: Transform, name: str, axis: tuple[float, float, float] | None) -> JointSpec:
+        x, y, z = t.translation
         return JointSpec(name, 'fixed' if axis is None else 'revolute', t.parent, t.child,
-                         tuple(float(v) for v in t.translation),
+                         (float(x), float(y), float(z)),
                          matrix_to_rpy(rotation_matrix(t.rotation)), axis)
 
     specs = [spec(world_transform(), 'world_joint', None)] if world else []
@@ -137,11 +147,11 @@ def _num(v: float, digits: int | None = None) -> str:
     return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
 
 
-def _nums(values: Sequence[float], digits: int | None = None) -> str:
+def _nums(values: Sequence[float] | np.ndarray, digits: int | None = None) -> str:
     return ' '.join(_num(v, digits) for v in values)
 
 
-def _origin(parent: ET.Element, xyz: Sequence[float], rpy: Sequence[float],
+def _origin(parent: ET.Element, xyz: Sequence[float] | np.ndarray, rpy: Sequence[float],
             digits: int | None = None) -> None:
     ET.SubElement(parent, 'origin', xyz=_nums(xyz, digits), rpy=_nums(rpy, digits))
 
