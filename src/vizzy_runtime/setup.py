@@ -18,7 +18,8 @@ setup(
     ],
     # The loopback-bind LD_PRELOAD shim (csrc/loopback_bind.c; see vizzy_runtime/loopback.py): built
     # like an extension so that pip and colcon compile it, never imported. Optional: without a C
-    # compiler the package still installs and the nodes say that their sockets bind 0.0.0.0.
+    # compiler the package still installs and the nodes say in one line that their sockets are
+    # not confined to loopback.
     ext_modules=[Extension('vizzy_runtime._loopback_bind', sources=['csrc/loopback_bind.c'],
                            libraries=['dl'], optional=True)],
     install_requires=['setuptools'],

@@ -1,11 +1,16 @@
 """Receive sockets on 127.0.0.1 by default (loopback.py and its LD_PRELOAD shim): Cyclone alone
-binds 0.0.0.0, with the shim every socket of the bundled runtime is on loopback, and VIZZY_DDS_LAN=1
-turns the rewrite off. The whole graph's nodes are checked in test_launch.py."""
+binds the wildcard address, with the shim every socket of the bundled runtime is on loopback, and
+VIZZY_DDS_LAN=1 turns the rewrite off. The whole graph's nodes are checked in test_launch.py.
+
+The controls that really bind the wildcard (no shim, the LAN opt-in) run in a private network
+namespace holding only lo (`unshare --net`), so no socket of this test is ever reachable from
+another host; where namespaces are not allowed they are skipped with the reason."""
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -36,9 +41,27 @@ print(json.dumps(sorted({addr for _, addr, _ in bound_addresses(os.getpid())})))
 '''
 
 
-def _run(code: str, *args: str, **env: str) -> str:
+ANY_V4 = '0.0.0.0'   # the wildcard, bound only inside a private namespace (ISOLATED)
+# A private network namespace with only lo, up: what runs there reaches no other host.
+ISOLATED = ['unshare', '--net', 'sh', '-c', 'ip link set lo up && exec "$0" "$@"']
+
+
+def _isolation() -> str | None:
+    """Why a private network namespace cannot be made here, or None."""
+    if not (shutil.which('unshare') and shutil.which('ip')):
+        return 'unshare or ip (util-linux, iproute2) missing'
+    proc = subprocess.run([*ISOLATED, 'true'], capture_output=True, text=True, timeout=30)
+    return None if proc.returncode == 0 else f'no network namespace: {proc.stderr.strip()}'
+
+
+WHY_NOT_ISOLATED = _isolation()
+needs_isolation = pytest.mark.skipif(WHY_NOT_ISOLATED is not None, reason=str(WHY_NOT_ISOLATED))
+
+
+def _run(code: str, *args: str, isolated: bool = False, **env: str) -> str:
     base = {k: v for k, v in os.environ.items() if k not in ('LD_PRELOAD', loopback.EXEC_MARK)}
-    proc = subprocess.run([sys.executable, '-c', code, *args], env={**base, **env},
+    prefix = ISOLATED if isolated else []
+    proc = subprocess.run([*prefix, sys.executable, '-c', code, *args], env={**base, **env},
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -55,19 +78,30 @@ def _ipv6() -> bool:
 
 def test_the_shim_binds_loopback_instead_of_the_wildcard() -> None:
     shim = str(loopback.shim_path())
-    assert _run(BIND, '0.0.0.0') == '0.0.0.0'                     # without it: every interface
-    assert _run(BIND, '0.0.0.0', LD_PRELOAD=shim) == '127.0.0.1'
+    assert _run(BIND, ANY_V4, LD_PRELOAD=shim) == '127.0.0.1'
     assert _run(BIND, '127.0.0.1', LD_PRELOAD=shim) == '127.0.0.1'  # explicit addresses unchanged
-    assert _run(BIND, '0.0.0.0', LD_PRELOAD=shim, VIZZY_DDS_LAN='1') == '0.0.0.0'  # the opt-in
     if _ipv6():
         assert _run(BIND, '::', LD_PRELOAD=shim) == '::1'
 
 
-@pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
-def test_cyclone_binds_every_interface_and_the_shim_keeps_it_on_loopback() -> None:
+@needs_isolation
+def test_without_the_shim_or_with_the_lan_opt_in_the_wildcard_is_bound() -> None:
     shim = str(loopback.shim_path())
-    assert '0.0.0.0' in _run(PARTICIPANT, VIZZY_RUNTIME='bundled')   # why the shim exists
+    assert _run(BIND, ANY_V4, isolated=True) == ANY_V4                     # without it
+    assert _run(BIND, ANY_V4, isolated=True, LD_PRELOAD=shim, VIZZY_DDS_LAN='1') == ANY_V4
+
+
+@pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
+def test_the_shim_keeps_a_cyclone_participant_on_loopback() -> None:
+    shim = str(loopback.shim_path())
     assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled', LD_PRELOAD=shim) == ['127.0.0.1']
+
+
+@needs_isolation
+@pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
+def test_cyclone_alone_binds_the_wildcard() -> None:
+    """Why the shim exists."""
+    assert ANY_V4 in _run(PARTICIPANT, isolated=True, VIZZY_RUNTIME='bundled')
 
 
 def test_an_entry_point_reexecutes_itself_once_with_the_shim() -> None:
