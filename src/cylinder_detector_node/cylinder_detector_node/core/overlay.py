@@ -14,12 +14,13 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from vizzy_runtime.overlay import FONT, draw_legend, drawing_scale
+
 from .fitting import Cylinder
 
 CYLINDER_COLOUR = (255, 60, 200)     # RGB
 AXIS_COLOUR = (255, 255, 0)
 LEGEND = ((CYLINDER_COLOUR, 'cylinder outline (r, h)'), (AXIS_COLOUR, 'axis'))
-FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 def intrinsics_from_organized(points: np.ndarray) -> np.ndarray | None:
@@ -70,8 +71,7 @@ def project(points: np.ndarray, k: np.ndarray) -> np.ndarray:
 def draw_cylinders(image: np.ndarray, k: np.ndarray, cylinders: Sequence[Cylinder]) -> np.ndarray:
     """A copy of image (rgb8) with each cylinder's outline, axis and size, and a legend."""
     out = image.copy()
-    s = max(0.35, min(out.shape[:2]) / 960.0)
-    thick = max(1, int(round(2 * s)))
+    s, thick = drawing_scale(out)
     for c in cylinders:
         bottom, top = cylinder_outline(c)
         for ring in (bottom, top):
@@ -94,22 +94,8 @@ def draw_cylinders(image: np.ndarray, k: np.ndarray, cylinders: Sequence[Cylinde
             org = (int(min(a[0], b[0])), int(max(12, min(a[1], b[1]) - 6)))
             cv2.putText(out, text, org, FONT, 0.45 * s, (0, 0, 0), thick + 2, cv2.LINE_AA)
             cv2.putText(out, text, org, FONT, 0.45 * s, CYLINDER_COLOUR, 1, cv2.LINE_AA)
-    _legend(out, s, thick)
+    draw_legend(out, LEGEND)
     return out
-
-
-def _legend(out: np.ndarray, s: float, thick: int) -> None:
-    line_h = int(round(18 * s)) + 4
-    box_w = (max(cv2.getTextSize(t, FONT, 0.45 * s, 1)[0][0] for _, t in LEGEND)
-             + int(round(30 * s)) + 8)
-    box_h = line_h * len(LEGEND) + 6
-    region = out[:box_h, :box_w]
-    region[:] = (region * 0.35).astype(out.dtype)
-    for i, (colour, text) in enumerate(LEGEND):
-        y = 4 + line_h * i + line_h // 2
-        cv2.line(out, (6, y), (6 + int(round(18 * s)), y), colour, thick + 1)
-        cv2.putText(out, text, (12 + int(round(18 * s)), y + int(round(5 * s))), FONT, 0.45 * s,
-                    (255, 255, 255), 1, cv2.LINE_AA)
 
 
 __all__ = ['draw_cylinders', 'cylinder_outline', 'intrinsics_from_organized', 'project']

@@ -13,12 +13,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from vizzy_runtime.overlay import FONT, draw_legend, drawing_scale
+
 # RGB colours (the overlay is rgb8), by FoveatedDetection.pass_index (0: pass 1, 1: pass 2)
 PASS_COLOURS: dict[int, tuple[int, int, int]] = {0: (40, 220, 40), 1: (255, 150, 0)}
 FIXATION_COLOUR = (0, 200, 255)
 LEGEND = ((PASS_COLOURS[0], 'pass 1 detection'), (PASS_COLOURS[1], 'pass 2 (fixating the box)'),
           (FIXATION_COLOUR, 'fixation + fovea (f0)'))
-FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 @dataclass(frozen=True)
@@ -35,16 +36,11 @@ class Box:
     pass_index: int = 0
 
 
-def _scale(image: np.ndarray) -> float:
-    return max(0.35, min(image.shape[:2]) / 960.0)
-
-
 def draw_overlay(image: np.ndarray, boxes: Sequence[Box], fixation: tuple[float, float] | None,
                  fovea_radius_px: float | None) -> np.ndarray:
     """A copy of image (H x W x 3 rgb8, or mono8, converted) with boxes, fixation, fovea, legend."""
     out = cv2.cvtColor(image, cv2.COLOR_GRAY2RGB) if image.ndim == 2 else image.copy()
-    s = _scale(out)
-    thick = max(1, int(round(2 * s)))
+    s, thick = drawing_scale(out)
     h, w = out.shape[:2]
     for b in boxes:
         colour = PASS_COLOURS.get(int(b.pass_index), PASS_COLOURS[1])
@@ -63,23 +59,8 @@ def draw_overlay(image: np.ndarray, boxes: Sequence[Box], fixation: tuple[float,
         cv2.line(out, (u, v - arm), (u, v + arm), FIXATION_COLOUR, thick)
         if fovea_radius_px is not None and np.isfinite(fovea_radius_px) and fovea_radius_px > 0:
             cv2.circle(out, (u, v), int(round(fovea_radius_px)), FIXATION_COLOUR, thick)
-    _legend(out, s, thick)
+    draw_legend(out, LEGEND)
     return out
-
-
-def _legend(out: np.ndarray, s: float, thick: int) -> None:
-    """A key in the top-left corner, on a dark box so it reads on any image."""
-    line_h = int(round(18 * s)) + 4
-    widths = [cv2.getTextSize(t, FONT, 0.45 * s, 1)[0][0] for _, t in LEGEND]
-    box_w = max(widths) + int(round(30 * s)) + 8
-    box_h = line_h * len(LEGEND) + 6
-    region = out[:box_h, :box_w]
-    region[:] = (region * 0.35).astype(out.dtype)
-    for i, (colour, text) in enumerate(LEGEND):
-        y = 4 + line_h * i + line_h // 2
-        cv2.line(out, (6, y), (6 + int(round(18 * s)), y), colour, thick + 1)
-        cv2.putText(out, text, (12 + int(round(18 * s)), y + int(round(5 * s))), FONT, 0.45 * s,
-                    (255, 255, 255), 1, cv2.LINE_AA)
 
 
 __all__ = ['Box', 'FIXATION_COLOUR', 'LEGEND', 'PASS_COLOURS', 'draw_overlay']
