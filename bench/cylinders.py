@@ -195,7 +195,7 @@ def rendered_frame_ms(fit: FitParams, repeats: int) -> dict[str, object]:
     the renderer or the model is unavailable)."""
     try:
         from cylinder_detector_node.core.classifier import PatchClassifier
-        from cylinder_detector_node.sim_frames import SimRenderer
+        from cylinder_detector_node.training.sim_frames import SimRenderer
         clf = PatchClassifier.load()
         r = SimRenderer()
         frame = r.frame(0)

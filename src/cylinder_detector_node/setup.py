@@ -26,7 +26,7 @@ setup(
         'console_scripts': [
             'cylinder_detector = cylinder_detector_node.node:main',
             'detect_file = cylinder_detector_node.detect_file:main',
-            'train_cylinder_classifier = cylinder_detector_node.train_classifier:main',
+            'train_cylinder_classifier = cylinder_detector_node.training.train_classifier:main',
         ],
     },
 )

@@ -27,7 +27,7 @@ setup(
     entry_points={
         'console_scripts': [
             'foveation = foveation_node.node:main',
-            'train_foveation_classifier = foveation_node.train_classifier:main',
+            'train_foveation_classifier = foveation_node.training.train_classifier:main',
             'recognize_folder = foveation_node.recognize_folder:main',
             'export_imagenet_classifier = foveation_node.export_imagenet_classifier:main',
         ],

@@ -18,13 +18,13 @@ setup(
     zip_safe=True,
     maintainer='Vizzy active vision maintainers',
     maintainer_email='vizzy@example.com',
-    description='Simulated Vizzy head and the gaze controller.',
+    description='Simulated Vizzy head (MuJoCo): cameras, RGB-D, joints, tf, clock, scenes.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'sim = vizzy_sim_bridge.sim_node:main',
-            'gaze_controller = vizzy_sim_bridge.gaze_controller_node:main',
+            'gaze_controller = vizzy_gaze.gaze_controller_node:main',
             'vizzy_head_urdf = vizzy_sim_bridge.head_urdf:main',
         ],
     },

@@ -88,8 +88,9 @@ from vizzy_runtime.convert import (  # noqa: F401 (the image reasons: counter ke
     numpy_to_image,
     pointcloud2_dtype,
     pointcloud2_to_array,
+    stamp_seconds,
 )
-from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
     Param,
@@ -101,6 +102,7 @@ from vizzy_runtime.node_tools import (
 )
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_vision.frames import quaternion_z_to
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 CylinderMsg = message('active_vision_msgs/msg/Cylinder')
@@ -270,21 +272,6 @@ def colour_image_refusal(msg: Any) -> tuple[str, str] | None:
     return image_refusal(msg, COLOUR_CHANNELS, convert=rgb_image)
 
 
-def quaternion_z_to(axis: np.ndarray) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of the shortest rotation taking +z to the unit vector axis."""
-    a = np.asarray(axis, dtype=float)
-    a = a / np.linalg.norm(a)
-    if a[2] < -1.0 + 1e-9:
-        return (1.0, 0.0, 0.0, 0.0)
-    q = np.array([-a[1], a[0], 0.0, 1.0 + a[2]])      # (z x a, 1 + z.a), normalized
-    q /= np.linalg.norm(q)
-    return tuple(float(v) for v in q)                   # type: ignore[return-value]
-
-
-def stamp_s(stamp: Any) -> float:
-    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
-
-
 def rgb_image(msg: Any) -> np.ndarray:
     """(H, W, 3) uint8 RGB of an rgb8/bgr8/rgba8/bgra8 Image; ValueError naming the problem."""
     img = image_to_numpy(msg)          # ConversionError is a ValueError
@@ -352,7 +339,7 @@ class CylinderDetectorNode(Node):
         self._p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_all,
                                      on_change=self._on_parameters_changed)
         self._params = pipeline_params(self._p)
-        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        self._warn_throttled = ThrottledWarnings(self, WARN_PERIOD_S)  # what is no refusal
         # refused inputs, per topic and reason; /diagnostics (before any subscription)
         self.input_health = InputHealth(self)
         self.clouds_received = 0           # by the subscription (read by tests)
@@ -443,9 +430,9 @@ class CylinderDetectorNode(Node):
             images = list(self._images)
         if not images:
             return None, f'no image on {self._image_topic} yet'
-        t = stamp_s(stamp)
-        best = min(images, key=lambda m: abs(stamp_s(m.header.stamp) - t))
-        dt = abs(stamp_s(best.header.stamp) - t)
+        t = stamp_seconds(stamp)
+        best = min(images, key=lambda m: abs(stamp_seconds(m.header.stamp) - t))
+        dt = abs(stamp_seconds(best.header.stamp) - t)
         if dt > self._p['image_tolerance_s']:
             return None, (f'no image within {self._p["image_tolerance_s"]:g} s of the cloud '
                           f'(nearest {dt:.3f} s away)')
@@ -470,13 +457,6 @@ class CylinderDetectorNode(Node):
         if 'use_classifier' in changed or 'classifier_model' in changed:
             self._load_classifier()
 
-    def _warn_throttled(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
-        input (those go to self.input_health)."""
-        now = time.monotonic()
-        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
-            self._warned[kind] = now
-            self.get_logger().warning(text)
 
     # --- the worker -----------------------------------------------------------------------------
 

@@ -20,14 +20,14 @@ from cylinder_detector_node.core.classifier import (
 )
 from cylinder_detector_node.core.fitting import FitParams
 from cylinder_detector_node.core.pipeline import detect_cylinders, image_problem
-from cylinder_detector_node.train_classifier import average_precision
+from cylinder_detector_node.training.train_classifier import average_precision
 
 TEST_SEEDS = (20001, 20002, 20003, 20004)
 
 
 @pytest.fixture(scope='module')
 def frames():
-    from cylinder_detector_node.sim_frames import SimRenderer, random_joints
+    from cylinder_detector_node.training.sim_frames import SimRenderer, random_joints
     try:
         r = SimRenderer()
         out = [r.frame(s, random_joints(np.random.default_rng([3, s]))) for s in TEST_SEEDS]
@@ -67,7 +67,7 @@ def test_stored_model_is_small_and_loads(tmp_path) -> None:
 def test_classifier_beats_fit_quality_on_held_out_patches(frames, classifier) -> None:
     """Fig. 4.8: on clusters of unseen scenes, P(cylinder) ranks cylinders above non-cylinders
     better than the Eq. 4.4 fit quality does, and classifies most of them right."""
-    from cylinder_detector_node.patch_data import MIN_PURITY, frame_patches
+    from cylinder_detector_node.training.patch_data import MIN_PURITY, frame_patches
     parts = [frame_patches(f) for f in frames]
     ok = np.concatenate([p.purity >= MIN_PURITY for p in parts])
     labels = np.concatenate([p.labels for p in parts])[ok]
@@ -84,7 +84,7 @@ def test_classifier_beats_fit_quality_on_held_out_patches(frames, classifier) ->
 
 def test_pipeline_with_classifier_skips_non_cylinders(frames, classifier) -> None:
     fit = FitParams(gmm=TABLE_4_1['mild'])
-    from cylinder_detector_node.patch_data import SEGMENT, label_cluster
+    from cylinder_detector_node.training.patch_data import SEGMENT, label_cluster
     rejected_non_cylinders = 0
     for f in frames:
         with_c = detect_cylinders(f.cloud, SEGMENT, fit, image=f.image, classifier=classifier)
@@ -110,7 +110,7 @@ def test_image_problems_are_named(frames, classifier) -> None:
     assert 'does not match the 640x480 cloud' in image_problem(small, f.cloud.shape)
     assert 'not organized' in image_problem(f.image, f.cloud.reshape(-1, 3).shape)
     assert 'not an 8-bit colour image' in image_problem(f.image[..., 0], f.cloud.shape)
-    from cylinder_detector_node.patch_data import SEGMENT
+    from cylinder_detector_node.training.patch_data import SEGMENT
     det = detect_cylinders(f.cloud, SEGMENT, FitParams(gmm=TABLE_4_1['mild']), image=small,
                            classifier=classifier)
     assert det.n_clusters > 0

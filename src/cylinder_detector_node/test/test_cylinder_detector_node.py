@@ -13,6 +13,7 @@ from vizzy_runtime.testing import (
     node_under_test,
     parameter_refusals,
 )
+from vizzy_vision.frames import quaternion_z_to
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'cylinder_detector.yaml'
 
@@ -69,7 +70,7 @@ def test_parameters_taken_together_and_mapped_to_the_core() -> None:
 def test_markers_turn_z_onto_the_axis() -> None:
     from cylinder_detector_node.core.fitting import Cylinder
     for axis in ([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -0.6, 0.8], [0.0, 0.0, -1.0]):
-        x, y, z, w = node.quaternion_z_to(np.array(axis))
+        x, y, z, w = quaternion_z_to(np.array(axis))
         image = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
         assert np.allclose(image, axis, atol=1e-9)
     header = node.CylinderArray().header
@@ -108,7 +109,7 @@ def test_images_are_read_as_rgb() -> None:
     assert node.colour_image_refusal(tall)[0] == node.EMPTY_IMAGE
     stamp = node.CylinderArray().header.stamp
     stamp.sec, stamp.nanosec = 3, 500_000_000
-    assert node.stamp_s(stamp) == 3.5
+    assert node.stamp_seconds(stamp) == 3.5
 
 
 def test_up_comes_from_tf_else_the_clouds_minus_y() -> None:

@@ -211,7 +211,7 @@ def _rotate_z(x: float, y: float, z: float, w: float) -> np.ndarray:
 @pytest.fixture(scope='module')
 def rendered():
     """The simulator's tabletop (seed 0) as its RGB-D camera sees it: image, cloud, ground truth."""
-    from cylinder_detector_node.sim_frames import SimRenderer
+    from cylinder_detector_node.training.sim_frames import SimRenderer
     try:
         r = SimRenderer()
         frame = r.frame(0)

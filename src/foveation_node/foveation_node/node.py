@@ -73,7 +73,6 @@ import cv2
 import numpy as np
 
 from foveation_node.core.foveation import DEFAULT_F0, DEFAULT_LEVELS, PYRAMID_SIGMA_1, Foveator
-from foveation_node.core.image_checks import check_fixation
 from foveation_node.core.overlay import Box, draw_overlay
 from foveation_node.core.recognition import (
     DEFAULT_THRESHOLD,
@@ -82,7 +81,6 @@ from foveation_node.core.recognition import (
     Detection,
     ModelError,
     TwoPassResult,
-    back_project,
     saccade_target,
     two_pass,
 )
@@ -100,7 +98,7 @@ from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reason
     image_to_numpy,
     numpy_to_image,
 )
-from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
     Param,
@@ -110,6 +108,8 @@ from vizzy_runtime.node_tools import (
     publish_from_thread,
 )
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
+from vizzy_vision.image_checks import check_fixation
+from vizzy_vision.rays import back_project
 
 Image = message('sensor_msgs/msg/Image')
 CompressedImage = message('sensor_msgs/msg/CompressedImage')
@@ -281,7 +281,7 @@ class FoveationNode(Node):
         self._foveator: Foveator | None = None
         self._in_saccade = False
         self._principal_point: tuple[float, float] | None = None
-        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        self._warn_throttled = ThrottledWarnings(self, WARN_PERIOD_S)  # what is no refusal
         # refused inputs, per topic and reason; /diagnostics (before any subscription)
         self.input_health = InputHealth(self)
         self.frames_published = 0
@@ -393,13 +393,6 @@ class FoveationNode(Node):
         self._camera_size = (int(msg.width), int(msg.height))
         self.input_health.accept(self._info_topic)
 
-    def _warn_throttled(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
-        input (those go to self.input_health)."""
-        now = time.monotonic()
-        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
-            self._warned[kind] = now
-            self.get_logger().warning(text)
 
     def _fixation(self, width: int, height: int) -> tuple[float, float]:
         if self._p['follow_gaze'] and self._principal_point is not None:

@@ -17,13 +17,13 @@ from foveation_node.core.recognition import (
     Classifier,
     Detection,
     ModelError,
-    back_project,
     load_preprocessing,
     merge_second_pass,
     saccade_target,
     saliency_box,
     two_pass,
 )
+from vizzy_vision.rays import back_project
 
 W, H = 640, 480
 

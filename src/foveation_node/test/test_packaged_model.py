@@ -18,7 +18,7 @@ PER_CLASS = 5
 
 @pytest.fixture(scope='module')
 def views():
-    from foveation_node.core.object_views import CLASSES, ObjectViews
+    from foveation_node.training.object_views import CLASSES, ObjectViews
     try:
         with ObjectViews(640, 480, seed=7) as ov:
             return ov.dataset(PER_CLASS * len(CLASSES), seed=9001)
@@ -32,7 +32,7 @@ def classifier():
 
 
 def test_the_packaged_model_loads_with_its_preprocessing(classifier) -> None:
-    from foveation_node.core.object_views import CLASSES
+    from foveation_node.training.object_views import CLASSES
     assert classifier.labels == list(CLASSES)
     assert classifier.preprocessing.input_size == (227, 227)
     assert resolve_path(DEFAULT_MODEL).stat().st_size < 2 * 1024 * 1024     # small for the repo

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from foveation_node.core.tabletop_views import TableObject, object_at
+from foveation_node.training.tabletop_views import TableObject, object_at
 
 pytest.importorskip('mujoco')
 render_mod = pytest.importorskip('vizzy_sim_bridge.core.render')
@@ -34,7 +34,7 @@ def test_object_at_prefers_visible_boxes_holding_the_point() -> None:
 
 @pytest.fixture(scope='module')
 def views():
-    from foveation_node.core.tabletop_views import DEFAULT_JOINTS, TabletopViews
+    from foveation_node.training.tabletop_views import DEFAULT_JOINTS, TabletopViews
     try:
         with TabletopViews() as tv:
             return [tv.view(s, DEFAULT_JOINTS) for s in SEEDS]

@@ -107,11 +107,13 @@ from vizzy_runtime.convert import (  # noqa: F401  the image reasons: this node'
     image_refusal,
     image_to_numpy,
     numpy_to_image,
+    stamp_seconds,
 )
-from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_vision.rays import back_project
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
@@ -137,7 +139,7 @@ ENCODINGS = ('rgb8', 'bgr8')
 UNUSABLE_FRAME = 'unusable frame'
 UNUSABLE_K = 'unusable K'
 NOMINAL_FPS = 30.0
-# The floor in base_link: -vizzy_sim_bridge.core.kinematics.WAIST_HEIGHT (the waist joint's height
+# The floor in base_link: -vizzy_vision.kinematics.WAIST_HEIGHT (the waist joint's height
 # in vizzy_description), copied so that the node does not depend on the simulator's package.
 FLOOR_Z_M = -0.535797
 LABEL_PERSON = 'person'
@@ -249,14 +251,6 @@ def planner_config(params: dict[str, Any]) -> PlannerConfig:
                          budget_ms=float(params['budget_ms']), area=str(DEPLOYED['area']))
 
 
-def fixation_ray(u: float, v: float, k: list[float], depth: float) -> tuple[float, float, float]:
-    """The point at depth (distance along the ray) through pixel (u, v), camera optical frame."""
-    fx, cx, fy, cy = k[0], k[2], k[4], k[5]
-    ray = np.array([(u - cx) / fx, (v - cy) / fy, 1.0])
-    ray *= depth / np.linalg.norm(ray)
-    return float(ray[0]), float(ray[1]), float(ray[2])
-
-
 class MotPlannerNode(Node):
     """Tracks people in the left image under an attention budget; publishes tracks and regions."""
 
@@ -265,7 +259,7 @@ class MotPlannerNode(Node):
         self._p = declare_parameters(self, PARAMETERS, check_parameter,
                                      on_change=self._on_parameters_changed)
         self._tracker = self._new_tracker()
-        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        self._warn_throttled = ThrottledWarnings(self, WARN_PERIOD_S)  # what is no refusal
         # refused inputs, per topic and reason; /diagnostics (before any subscription)
         self.input_health = InputHealth(self)
         self._in_saccade = False
@@ -364,7 +358,7 @@ class MotPlannerNode(Node):
     def _on_tf(self, msg: Any) -> None:
         if not msg.transforms or not self._p['ego_motion']:
             return
-        stamp = max(_seconds(t.header.stamp) for t in msg.transforms)
+        stamp = max(stamp_seconds(t.header.stamp) for t in msg.transforms)
         for frame, history in self._orientations.items():
             try:
                 pose = self._tf.lookup_transform(self._p['world_frame'], frame)
@@ -385,7 +379,7 @@ class MotPlannerNode(Node):
         history = self._orientations.get(frame)
         if history is None:                    # first image from this frame: start recording
             history = self._orientations[frame] = OrientationHistory(TF_HISTORY_S)
-        pose = history.pose_at(_seconds(header.stamp))
+        pose = history.pose_at(stamp_seconds(header.stamp))
         if pose is None:    # no /tf around this stamp (static chain, no stamps): the latest
             try:
                 pose = self._tf.lookup_transform(self._p['world_frame'], frame)
@@ -416,13 +410,6 @@ class MotPlannerNode(Node):
             np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0))))
         return rotation_homography(np.reshape(self._k, (3, 3)), rel), pose
 
-    def _warn_throttled(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
-        input (those go to self.input_health)."""
-        now = time.monotonic()
-        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
-            self._warned[kind] = now
-            self.get_logger().warning(text)
 
     def _forget_tracks(self) -> None:
         self._born.clear()
@@ -475,7 +462,7 @@ class MotPlannerNode(Node):
         self.input_health.accept(self._image_topic)
 
     def _update_frame_period(self, stamp: Any) -> None:
-        t = _seconds(stamp)
+        t = stamp_seconds(stamp)
         if self._last_stamp is not None and t > self._last_stamp:
             dt = t - self._last_stamp
             if dt < 5.0:                      # a pause (a bag restarted) is not a frame period
@@ -615,7 +602,7 @@ class MotPlannerNode(Node):
                           priority=int(self._p['gaze_priority']), hold_time=0.0)
         cmd.header.frame_id = header.frame_id
         cmd.header.stamp = self.get_clock().now().to_msg()
-        p = fixation_ray(float(u), float(v), self._k, float(self._p['gaze_depth_m']))
+        p = back_project(float(u), float(v), self._k, float(self._p['gaze_depth_m']))
         if pose is not None:
             q = pose[:3, :3] @ np.asarray(p) + pose[:3, 3]
             p = float(q[0]), float(q[1]), float(q[2])
@@ -624,10 +611,6 @@ class MotPlannerNode(Node):
         self._gaze_pub.publish(cmd)
         self._last_gaze = now
         self.gaze_commands += 1
-
-
-def _seconds(stamp: Any) -> float:
-    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
 
 
 main = main_for(MotPlannerNode)

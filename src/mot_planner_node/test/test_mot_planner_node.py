@@ -57,6 +57,6 @@ def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
 def test_floor_default_is_the_kinematics_constant() -> None:
     """floor_z_m's default is the floor in base_link (the node copies it, not to depend on
     the simulator's package at run time)."""
-    from vizzy_sim_bridge.core.kinematics import WAIST_HEIGHT
+    from vizzy_vision.kinematics import WAIST_HEIGHT
     assert node.FLOOR_Z_M == -WAIST_HEIGHT
     assert {p.name: p.default for p in node.PARAMETERS}['floor_z_m'] == -WAIST_HEIGHT

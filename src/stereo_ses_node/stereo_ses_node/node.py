@@ -101,8 +101,9 @@ from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reason
     array_to_pointcloud2,
     image_refusal,
     image_to_numpy,
+    stamp_seconds,
 )
-from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
     Param,
@@ -114,6 +115,7 @@ from vizzy_runtime.node_tools import (
 )
 from vizzy_runtime.ros import ExternalShutdownException, Node, QoSProfile, message
 from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_vision.pointcloud import pack_rgb
 
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
@@ -306,18 +308,6 @@ def intrinsics(msg: Any) -> np.ndarray | None:
     return k.reshape(3, 3)
 
 
-def stamp_seconds(stamp: Any) -> float:
-    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
-
-
-def pack_rgb(rgb: np.ndarray) -> np.ndarray:
-    """(N, 3) uint8 colours as float32 whose bits are 0x00RRGGBB (PCL's packed rgb)."""
-    rgb = np.asarray(rgb, np.uint8)
-    packed = ((rgb[:, 0].astype(np.uint32) << 16) | (rgb[:, 1].astype(np.uint32) << 8)
-              | rgb[:, 2].astype(np.uint32))
-    return packed.view(np.float32)
-
-
 def points_array(frame: StereoFrame, info: np.ndarray) -> np.ndarray:
     """The /stereo/points structured array of a frame (left optical frame)."""
     out = np.empty(frame.means.shape[0], POINT_DTYPE)
@@ -378,7 +368,7 @@ class StereoSesNode(Node):
         self._ses_dirty = False
         self._refused: set[int] = set()   # cells not to choose: refused, or fixating gave nothing
         self._fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
-        self._warned: dict[str, float] = {}     # throttled warnings that are no refusals
+        self._warn_throttled = ThrottledWarnings(self, WARN_PERIOD_S)  # what is no refusal
         # counters (read by tests and the periodic log)
         self.pairs_received = 0
         self.images_unpaired = 0          # dropped: no partner with a matching stamp
@@ -456,13 +446,6 @@ class StereoSesNode(Node):
             self._cells_timer = replace_timer(self, self._cells_timer,
                                               1.0 / changed['cells_rate_hz'], self._cells_tick)
 
-    def _warn_throttled(self, kind: str, text: str) -> None:
-        """A warning at most once every WARN_PERIOD_S per kind, for what is not a refused
-        input (those go to self.input_health)."""
-        now = time.monotonic()
-        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD_S:
-            self._warned[kind] = now
-            self.get_logger().warning(text)
 
     # --- inputs (executor thread: store only) ---------------------------------------------------
 

@@ -144,7 +144,7 @@ def compute(left: np.ndarray, right: np.ndarray, sensor: str, window: DisparityW
     h, w = left.shape[:2]
     extra: dict = {}
     if sensor == 'logpolar':
-        from foveation_node.core.logpolar import LogPolarRetina
+        from vizzy_vision.logpolar import LogPolarRetina
 
         from .core.sensors import fovea_radius
         retina = LogPolarRetina(w, h, rings=n_rf, wedges=n_rf, center=fixation)

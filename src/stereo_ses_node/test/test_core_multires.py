@@ -7,7 +7,6 @@ import cv2
 import numpy as np
 import pytest
 
-from foveation_node.core.logpolar import LogPolarRetina
 from stereo_ses_node.core.geometry import epipolar_distance, vergence_poses
 from stereo_ses_node.core.multires import (
     DisparityWindow,
@@ -25,6 +24,7 @@ from stereo_ses_node.core.sensors import fovea_radius
 from stereo_ses_node.core.stereo import StereoPipeline
 from stereo_ses_node.core.synthetic import Layer, layered_pair, plane_texture, random_layers
 from stereo_ses_node.core.ut import StereoRig
+from vizzy_vision.logpolar import LogPolarRetina
 
 W, H = 320, 240
 FOVEA = 16.0

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from foveation_node.core.logpolar import LogPolarRetina
 from stereo_ses_node.core.geometry import vergence_poses
 from stereo_ses_node.core.sensors import cartesian_sensor, logpolar_sensor
 from stereo_ses_node.core.ses import SensoryEgoSphere
 from stereo_ses_node.core.stereo import StereoPipeline
 from stereo_ses_node.core.synthetic import plane_texture, render_plane
 from stereo_ses_node.core.ut import StereoRig
+from vizzy_vision.logpolar import LogPolarRetina
 
 W, H = 320, 240
 F = 160.0 / np.tan(np.radians(85.4 / 2))

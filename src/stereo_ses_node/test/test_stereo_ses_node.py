@@ -14,6 +14,7 @@ from vizzy_runtime.testing import (
     node_under_test,
     parameter_refusals,
 )
+from vizzy_vision.pointcloud import pack_rgb
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'stereo_ses.yaml'
 
@@ -87,7 +88,7 @@ def test_cloud_layouts() -> None:
     points = array_to_pointcloud2(np.zeros(0, dtype=node.POINT_DTYPE))
     assert [f.name for f in points.fields] == ['x', 'y', 'z', 'rgb', 'cxx', 'cxy', 'cxz', 'cyy',
                                                'cyz', 'czz', 'information']
-    packed = node.pack_rgb(np.array([[255, 128, 1]], np.uint8))
+    packed = pack_rgb(np.array([[255, 128, 1]], np.uint8))
     assert packed.view(np.uint32)[0] == 0xFF8001
     ses = SensoryEgoSphere(500, seed=1)
     assert node.cells_array(ses, observed_only=True).size == 0

@@ -281,10 +281,10 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
 
 
 def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
-    graph = Graph(nodes=[NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'bad',
+    graph = Graph(nodes=[NodeSpec('vizzy_gaze', 'gaze_controller', 'bad',
                                   respawn_max_retries=1,
                                   arguments=['--ros-args', '-p', 'control_rate_hz:=-5.0']),
-                         NodeSpec('vizzy_sim_bridge', 'gaze_controller', 'twice',
+                         NodeSpec('vizzy_gaze', 'gaze_controller', 'twice',
                                   respawn_max_retries=1,
                                   arguments=['--ros-args', '-p', 'use_sim_time:=false'])],
                   respawn=True, respawn_delay=0.0)

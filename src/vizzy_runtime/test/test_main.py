@@ -23,7 +23,7 @@ STARTUP_TIMEOUT = 120.0   # imports alone take tens of seconds on a loaded 2-cor
 
 
 def _node(*ros_args: str) -> subprocess.Popen[str]:
-    cmd = [sys.executable, '-m', 'vizzy_runtime.cli', 'run', 'vizzy_sim_bridge', 'gaze_controller']
+    cmd = [sys.executable, '-m', 'vizzy_runtime.cli', 'run', 'vizzy_gaze', 'gaze_controller']
     if ros_args:
         cmd += ['--ros-args', *ros_args]
     # SIGINT at its default in the child whatever the caller ignores (a shell's background job)

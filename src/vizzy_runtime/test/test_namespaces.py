@@ -76,7 +76,7 @@ def _factory(name: str) -> tuple[Callable[..., Any], list[Any]]:
             pytest.skip(str(exc))
         return SimNode, [Parameter(k, value=v) for k, v in SMALL_SIM.items()]
     if name == 'gaze_controller':
-        from vizzy_sim_bridge.gaze_controller_node import GazeControllerNode
+        from vizzy_gaze.gaze_controller_node import GazeControllerNode
         return GazeControllerNode, []
     if name == 'foveation':
         from foveation_node.node import FoveationNode

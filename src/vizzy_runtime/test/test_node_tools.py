@@ -361,3 +361,23 @@ def test_latest_worker_spaces_starts_by_the_period() -> None:
     finally:
         worker.close()
     assert starts[1] - starts[0] >= 0.2 - 1e-3
+
+
+def test_throttled_warnings_log_once_per_kind_and_period() -> None:
+    from vizzy_runtime.input_health import ThrottledWarnings
+
+    lines: list[str] = []
+
+    class Logger:
+        def warning(self, text: str) -> None:
+            lines.append(text)
+
+    class FakeNode:
+        def get_logger(self) -> Logger:
+            return Logger()
+
+    warn = ThrottledWarnings(FakeNode(), period_s=60.0)
+    assert warn('tf', 'no transform') and not warn('tf', 'no transform again')
+    assert warn('clock', 'clock jumped back')            # another kind: its own period
+    assert warn('tf', 'a short period', period_s=0.0)    # a per-call period overrides
+    assert lines == ['no transform', 'clock jumped back', 'a short period']

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -56,6 +57,13 @@ PIP_ONLY = {
     'zstandard': 'zstandard', 'foxglove': 'foxglove-sdk', 'websockets': 'websockets',
     'efficientnet_lite_pytorch': 'efficientnet-lite-pytorch',
 }
+
+# Shared packages any package may use; every other workspace package is a node package, which
+# imports no other node package (DESIGN: nodes are thin adapters over shared pieces).
+SHARED = frozenset({'vizzy_runtime', 'vizzy_vision', 'active_vision_msgs'})
+# What only training and data generation (<pkg>/training/) import: the simulated head. Declared as
+# a test dependency, so a robot that installs a perception node installs no simulator.
+TRAINING_ONLY = frozenset({'vizzy_sim_bridge', 'mujoco'})
 
 # 'pkg/msg/Type' placeholders in docstrings and messages, not packages.
 PLACEHOLDERS = frozenset({'pkg'})
@@ -110,7 +118,8 @@ def _sources(pkg_dir: Path, tests: bool) -> list[Path]:
         return sorted((pkg_dir / 'test').rglob('*.py'))
     files = [p for p in pkg_dir.rglob('*.py')
              if p.name != 'setup.py' and 'test' not in p.relative_to(pkg_dir).parts]
-    return sorted(files)
+    # training/ last, so a module's first importer is run-time code whenever any imports it
+    return sorted(files, key=lambda p: ('training' in p.relative_to(pkg_dir).parts, p))
 
 
 def _message_packages(files: list[Path]) -> dict[str, str]:
@@ -200,6 +209,10 @@ def test_used_message_packages_are_declared(pkg_dir: Path) -> None:
     assert not missing, f'{pkg_dir.name}/package.xml lacks a dependency (test_depend) on {missing}'
 
 
+def _training(path: Path | str) -> bool:
+    return 'training' in Path(path).parts
+
+
 def _check_imports(pkg_dir: Path, tests: bool) -> list[str]:
     declared = _any_deps(pkg_dir) if tests else _exec_deps(pkg_dir)
     # Whole-graph tests may import packages that depend on this one: declaring those would be a
@@ -217,7 +230,9 @@ def _check_imports(pkg_dir: Path, tests: bool) -> list[str]:
             problems.append(f'{module} ({where}): add it to MODULE_KEYS (a checked rosdep key) '
                             'or PIP_ONLY (and requirements-ros-apt.txt)')
             continue
-        if need not in declared:
+        # training-only imports (first seen in training/ code) are declared at any tag
+        training_only = not tests and module in TRAINING_ONLY and _training(where)
+        if need not in (_any_deps(pkg_dir) if training_only else declared):
             problems.append(f'{module} ({where}) needs {need} declared')
     return problems
 
@@ -225,6 +240,41 @@ def _check_imports(pkg_dir: Path, tests: bool) -> list[str]:
 def test_imported_modules_are_declared(pkg_dir: Path) -> None:
     problems = _check_imports(pkg_dir, tests=False) + _check_imports(pkg_dir, tests=True)
     assert not problems, f'{pkg_dir.name}/package.xml: ' + '; '.join(problems)
+
+
+def test_no_node_package_imports_another() -> None:
+    # Only the shared packages are imported across packages; the simulator only by training code.
+    problems = []
+    for d in PACKAGE_DIRS:
+        name = _name(d)
+        if name in SHARED or not (d / 'setup.py').exists():
+            continue
+        for module, where in _imported_modules(_sources(d, tests=False)).items():
+            allowed = module in SHARED | {name} or (module in TRAINING_ONLY and _training(where))
+            if module in WORKSPACE and not allowed:
+                problems.append(f'{name} imports {module} ({where})')
+    assert not problems, '; '.join(problems)
+
+
+def test_nodes_import_without_the_simulator() -> None:
+    # A robot without MuJoCo and vizzy_sim_bridge runs every perception node and the gaze
+    # controller; a training program there ends with one line naming what to install.
+    block = "import sys; sys.modules.update(mujoco=None, vizzy_sim_bridge=None); "
+    modules = ['vizzy_gaze.gaze_controller_node', 'foveation_node.node', 'stereo_ses_node.node',
+               'cylinder_detector_node.node', 'mot_planner_node.node']
+    code = block + ''.join(f'import {m}; ' for m in modules)
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    for program, module in [('train_foveation_classifier', 'foveation_node'),
+                            ('train_cylinder_classifier', 'cylinder_detector_node')]:
+        code = (block + f'from {module}.training.train_classifier import main; '
+                'sys.exit(main(["--epochs", "1"]))')
+        run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                             timeout=300)
+        lines = run.stderr.strip().splitlines()
+        assert run.returncode == 2 and len(lines) == 1, run.stderr[-2000:]
+        assert lines[0].startswith(f'{program}: needs the simulated head') and \
+            'vizzy_sim_bridge' in lines[0], lines[0]
 
 
 def test_no_dependency_cycle() -> None:

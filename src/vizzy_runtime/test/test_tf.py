@@ -13,12 +13,8 @@ from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.ros import message, qos_profile_latched
 from vizzy_runtime.testing import wait_until
-from vizzy_runtime.tf import (
-    TransformBuffer,
-    TransformListener,
-    matrices_from_transforms,
-    quaternions_to_matrices,
-)
+from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_vision.frames import matrices_from_transforms, quaternions_to_matrices
 
 TFMessage = message('tf2_msgs/msg/TFMessage')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')

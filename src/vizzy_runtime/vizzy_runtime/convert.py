@@ -31,6 +31,11 @@ class ConversionError(ValueError):
     """A message that cannot be viewed as the requested array (encoding, size, layout)."""
 
 
+def stamp_seconds(stamp: Any) -> float:
+    """A builtin_interfaces/Time (a header's stamp) in seconds."""
+    return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
 def _byte_view(data: Any) -> np.ndarray:
     return (np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray)
             else data.view(np.uint8))

@@ -37,10 +37,12 @@ from typing import Any
 
 import numpy as np
 
+from vizzy_vision.frames import matrices_from_transforms, quaternions_to_matrices
+
 from . import msgs
 from .bag import BagReader
 from .convert import image_to_numpy, pointcloud2_to_array
-from .tf import TransformBuffer, matrices_from_transforms, quaternions_to_matrices
+from .tf import TransformBuffer
 
 FIGSIZE = (16.0, 10.0)   # inches
 DPI = 110                # -> 1760 x 1100 px

@@ -27,6 +27,32 @@ DIAGNOSTICS_TOPIC = '/diagnostics'  # absolute, as diagnostic_updater publishes 
 MALFORMED = 'malformed CDR'
 
 
+class ThrottledWarnings:
+    """Warnings about what is no refused input (those go to InputHealth): one line at most every
+    period_s per kind, so a fault that repeats at frame rate does not flood the log.
+
+        self._warn_throttled = ThrottledWarnings(self, 5.0)
+        self._warn_throttled('tf', f'no transform {frame} -> base_link: {exc}')
+    """
+
+    def __init__(self, node: Any, period_s: float = 5.0) -> None:
+        self._node = node
+        self._period_s = period_s
+        self._lock = threading.Lock()
+        self._last: dict[str, float] = {}
+
+    def __call__(self, kind: str, text: str, period_s: float | None = None) -> bool:
+        """Log text unless a warning of this kind was logged within the period; True if logged."""
+        now = time.monotonic()
+        period = self._period_s if period_s is None else period_s
+        with self._lock:
+            if now - self._last.get(kind, -math.inf) < period:
+                return False
+            self._last[kind] = now
+        self._node.get_logger().warning(text)
+        return True
+
+
 class InputHealth:
     """Refusal counters of one node, with their log lines and /diagnostics publisher."""
 

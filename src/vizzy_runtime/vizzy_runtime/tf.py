@@ -29,49 +29,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['TF_STATIC_TOPIC', 'TF_TOPIC', 'TransformBuffer', 'TransformListener',
-           'matrices_from_transforms', 'quaternions_to_matrices']
+from vizzy_vision.frames import matrices_from_transforms
+
+__all__ = ['TF_STATIC_TOPIC', 'TF_TOPIC', 'TransformBuffer', 'TransformListener']
 
 # Relative, so each namespaced head keeps its own tree (the multi-robot idiom); at the root
 # namespace they resolve to /tf and /tf_static, tf2_ros's names.
 TF_TOPIC = 'tf'
 TF_STATIC_TOPIC = 'tf_static'
-
-
-def quaternions_to_matrices(quaternions: np.ndarray) -> np.ndarray:
-    """(N, 4) quaternions (x, y, z, w) -> (N, 3, 3) rotation matrices (normalized first).
-
-    Raises ValueError for a quaternion of (near) zero norm or with non-finite values.
-    """
-    q = np.asarray(quaternions, dtype=np.float64).reshape(-1, 4)
-    norm = np.linalg.norm(q, axis=1)
-    bad = ~np.isfinite(norm) | (norm < 1e-9)
-    if bad.any():
-        raise ValueError(f'invalid rotation quaternion(s) {q[bad].tolist()}')
-    x, y, z, w = (q / norm[:, None]).T
-    r = np.empty((len(q), 3, 3))
-    r[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    r[:, 0, 1] = 2 * (x * y - z * w)
-    r[:, 0, 2] = 2 * (x * z + y * w)
-    r[:, 1, 0] = 2 * (x * y + z * w)
-    r[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    r[:, 1, 2] = 2 * (y * z - x * w)
-    r[:, 2, 0] = 2 * (x * z - y * w)
-    r[:, 2, 1] = 2 * (y * z + x * w)
-    r[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return r
-
-
-def matrices_from_transforms(translations: np.ndarray, quaternions: np.ndarray) -> np.ndarray:
-    """(N, 3) translations and (N, 4) quaternions (x, y, z, w) -> (N, 4, 4) homogeneous matrices."""
-    t = np.asarray(translations, dtype=np.float64).reshape(-1, 3)
-    if not np.isfinite(t).all():
-        raise ValueError(f'non-finite translation(s) {t[~np.isfinite(t).all(axis=1)].tolist()}')
-    m = np.zeros((len(t), 4, 4))
-    m[:, :3, :3] = quaternions_to_matrices(quaternions)
-    m[:, :3, 3] = t
-    m[:, 3, 3] = 1.0
-    return m
 
 
 def _strip(frame_id: str) -> str:

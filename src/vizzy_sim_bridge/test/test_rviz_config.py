@@ -18,7 +18,7 @@ from typing import Any
 import yaml
 
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
-from vizzy_sim_bridge.core.kinematics import FRAME_NAMES
+from vizzy_vision.kinematics import FRAME_NAMES
 
 SRC = Path(__file__).resolve().parents[2]
 RVIZ = SRC / 'vizzy_runtime' / 'config' / 'vizzy.rviz'

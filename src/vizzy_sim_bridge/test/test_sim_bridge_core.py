@@ -11,14 +11,15 @@ import math
 import numpy as np
 import pytest
 
-from vizzy_sim_bridge.core.camera import (
+from vizzy_vision.camera import (
     camera_matrix,
     focal_length,
     fovy_deg,
     project,
     projection_matrix,
 )
-from vizzy_sim_bridge.core.kinematics import (
+from vizzy_vision.frames import matrix_to_quaternion, rotation_matrix
+from vizzy_vision.kinematics import (
     BASELINE,
     FRAME_NAMES,
     JOINT_LIMITS,
@@ -32,8 +33,6 @@ from vizzy_sim_bridge.core.kinematics import (
     from_robot_joints,
     gaze_angles,
     joint_transforms,
-    matrix_to_quaternion,
-    rotation_matrix,
     static_transforms,
     to_robot_joints,
 )

@@ -1,8 +1,7 @@
-"""The sim and gaze_controller nodes: declared parameters and their config YAML."""
+"""The sim node: declared parameters and its config YAML."""
 
 from pathlib import Path
 
-import pytest
 import yaml
 
 from vizzy_runtime.ros import Parameter
@@ -13,18 +12,14 @@ from vizzy_runtime.testing import (
     parameter_refusals,
     startup_problem,
 )
-from vizzy_sim_bridge import gaze_controller_node, sim_node
+from vizzy_sim_bridge import sim_node
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
-# (node name, module, check, check_all): the gaze controller's rules are all ranges
-NODES = [('sim', sim_node, sim_node.check_parameter, sim_node.check_parameters),
-         ('gaze_controller', gaze_controller_node, None, gaze_controller_node.check_parameters)]
 
 
-@pytest.mark.parametrize('node_name, module, check, check_all', NODES)
-def test_parameter_table_and_config(node_name, module, check, check_all) -> None:
-    check_parameter_table(module.PARAMETERS, check, CONFIG / f'{node_name}.yaml', node_name,
-                          check_all)
+def test_parameter_table_and_config() -> None:
+    check_parameter_table(sim_node.PARAMETERS, sim_node.check_parameter, CONFIG / 'sim.yaml',
+                          'sim', sim_node.check_parameters)
 
 
 def test_sim_config_runs_the_sim_on_wall_time() -> None:
@@ -46,22 +41,11 @@ def test_out_of_range_values_are_refused() -> None:
     assert "'render_backend' = 'vulkan'" in startup_problem(*sim, render_backend='vulkan')
     assert "parameter 'width' = 8: out of range [16, 4096]" in startup_problem(*sim, width=8)
     assert sim_node.check_parameters({'rgbd_min_range_m': 2.0, 'rgbd_max_range_m': 1.0})
-    gaze = (gaze_controller_node.PARAMETERS, None, gaze_controller_node.check_parameters)
-    with parameter_refusals(*gaze) as refused:
-        assert refused('saccade_min_duration_s', -0.1)
-        assert refused('max_fixation_distance_m', 0.0)
-        assert refused('max_velocity_rad_s', gaze_controller_node._VMAX * 1.01)
-        assert refused('max_velocity_rad_s', gaze_controller_node._VMAX) is None
 
 
-@pytest.mark.parametrize('make, module, bad', [
-    (sim_node.SimNode, sim_node, ('rate_hz', -1.0)),
-    (gaze_controller_node.GazeControllerNode, gaze_controller_node,
-     ('saccade_min_duration_s', -1.0)),
-])
-def test_node_declares_its_parameters_and_refuses_bad_values(make, module, bad) -> None:
-    with node_under_test(make) as ros_node:
-        check_node_parameters(ros_node, module.PARAMETERS, *bad)
+def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
+    with node_under_test(sim_node.SimNode) as ros_node:
+        check_node_parameters(ros_node, sim_node.PARAMETERS, 'rate_hz', -1.0)
 
 
 def test_sim_refuses_to_follow_its_own_clock() -> None:
@@ -69,13 +53,6 @@ def test_sim_refuses_to_follow_its_own_clock() -> None:
         assert ros_node.get_parameter('use_sim_time').value is False
         result = ros_node.set_parameters([Parameter('use_sim_time', value=True)])[0]
         assert not result.successful
-
-
-def test_gaze_controller_refuses_min_fixation_beyond_max() -> None:
-    with node_under_test(gaze_controller_node.GazeControllerNode) as ros_node:
-        result = ros_node.set_parameters([Parameter('min_fixation_distance_m', value=20.0)])[0]
-        assert not result.successful and 'max_fixation_distance_m' in result.reason
-        assert ros_node.get_parameter('min_fixation_distance_m').value == 0.15
 
 
 def test_sim_refuses_read_only_parameters() -> None:

@@ -6,7 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from vizzy_sim_bridge.core.kinematics import (
+from vizzy_sim_bridge.core.model import HeadSimulation, build_mjcf
+from vizzy_sim_bridge.core.scenes import Scene
+from vizzy_vision.kinematics import (
     FRAME_NAMES,
     JOINT_LIMITS,
     JOINT_NAMES,
@@ -14,8 +16,6 @@ from vizzy_sim_bridge.core.kinematics import (
     WAIST_HEIGHT,
     frames_in_base,
 )
-from vizzy_sim_bridge.core.model import HeadSimulation, build_mjcf
-from vizzy_sim_bridge.core.scenes import Scene
 
 EMPTY = Scene(name='empty', seed=0, assets_xml='', worldbody_xml='')
 BODIES = ('base_link', 'neck_pan_link', 'neck_tilt_link', 'eyes_tilt_link', 'left_eye_link',

@@ -25,16 +25,16 @@ from vizzy_runtime.ros import (
 )
 from vizzy_runtime.testing import wait_until
 from vizzy_sim_bridge.core import render as render_mod
-from vizzy_sim_bridge.core.camera import camera_matrix
-from vizzy_sim_bridge.core.kinematics import (
+from vizzy_sim_bridge.core.urdf import head_urdf
+from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
+from vizzy_vision.camera import camera_matrix
+from vizzy_vision.kinematics import (
     BASELINE,
     JOINT_LIMITS,
     JOINT_NAMES,
     frames_in_base,
     static_transforms,
 )
-from vizzy_sim_bridge.core.urdf import head_urdf
-from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from vizzy_sim_bridge.core import render as render_mod
-from vizzy_sim_bridge.core.camera import camera_matrix, project
-from vizzy_sim_bridge.core.kinematics import JOINT_LIMITS, JOINT_NAMES, WAIST_HEIGHT, frames_in_base
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
 from vizzy_sim_bridge.core.rgbd import DepthProjector
 from vizzy_sim_bridge.core.scenes import Scene, build_scene
+from vizzy_vision.camera import camera_matrix, project
+from vizzy_vision.kinematics import JOINT_LIMITS, JOINT_NAMES, WAIST_HEIGHT, frames_in_base
 
 
 @pytest.fixture(scope='module')
@@ -111,8 +111,8 @@ def test_known_points_render_where_camera_info_projects_them(backend, seed) -> N
 def test_right_camera_projection_matches_p_with_the_baseline(backend) -> None:
     """At zero vergence the pair is rectified: a point's disparity is fx * baseline / z, as the
     right CameraInfo's P (Tx = -fx * baseline) says."""
-    from vizzy_sim_bridge.core.camera import projection_matrix
-    from vizzy_sim_bridge.core.kinematics import BASELINE
+    from vizzy_vision.camera import projection_matrix
+    from vizzy_vision.kinematics import BASELINE
     k = camera_matrix(640, 480, 85.4)
     poses = frames_in_base([0.0] * 5)
     left = poses['left_camera_optical_frame']
@@ -138,7 +138,7 @@ def test_depth_is_the_distance_along_the_optical_axis(backend) -> None:
     cam = poses['rgbd_camera_optical_frame']
     centre = cam[:3, 3] + 1.5 * cam[:3, 2] + [0.0, 0.0, WAIST_HEIGHT]
     normal = -cam[:3, 2]
-    from vizzy_sim_bridge.core.kinematics import matrix_to_quaternion
+    from vizzy_vision.frames import matrix_to_quaternion
     rot = np.column_stack([cam[:3, 0], -cam[:3, 1], normal])   # plane z = normal, right-handed
     x, y, z, w = matrix_to_quaternion(rot)
     wall = (f'<geom type="plane" size="5 5 0.5" pos="{centre[0]} {centre[1]} {centre[2]}" '

@@ -4,16 +4,15 @@ organized."""
 import numpy as np
 import pytest
 
-from vizzy_sim_bridge.core.camera import camera_matrix
 from vizzy_sim_bridge.core.rgbd import (
     CLOUD_DTYPE,
     XTION_SIGMA_COEFFICIENT,
     DepthProjector,
     depth_sigma,
     noisy_depth,
-    pack_rgb,
-    unpack_rgb,
 )
+from vizzy_vision.camera import camera_matrix
+from vizzy_vision.pointcloud import pack_rgb, unpack_rgb
 
 
 def test_depth_noise_statistics_grow_with_range() -> None:

@@ -5,8 +5,6 @@ import math
 import numpy as np
 import pytest
 
-from vizzy_sim_bridge.core.camera import camera_matrix, project
-from vizzy_sim_bridge.core.kinematics import WAIST_HEIGHT, camera_poses, frames_in_base
 from vizzy_sim_bridge.core.model import compile_model
 from vizzy_sim_bridge.core.scenes import (
     CAN_HEIGHT,
@@ -17,13 +15,15 @@ from vizzy_sim_bridge.core.scenes import (
     build_scene,
     pedestrian_boxes,
 )
+from vizzy_vision.camera import camera_matrix, project
+from vizzy_vision.kinematics import WAIST_HEIGHT, camera_poses, frames_in_base
 
 HOME = [0.0] * 5
 K = camera_matrix(640, 480, 85.4)
 
 
 def _corners(obj) -> np.ndarray:
-    from vizzy_sim_bridge.core.kinematics import rotation_matrix
+    from vizzy_vision.frames import rotation_matrix
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     return (0.5 * signs * np.array(obj.size)) @ rotation_matrix(obj.orientation).T + obj.position
 

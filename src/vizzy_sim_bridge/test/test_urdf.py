@@ -26,7 +26,11 @@ from scipy.spatial.transform import Rotation
 
 from vizzy_runtime.ros import message
 from vizzy_sim_bridge import head_urdf as head_urdf_cli
-from vizzy_sim_bridge.core.kinematics import (
+from vizzy_sim_bridge.core.model import HeadSimulation
+from vizzy_sim_bridge.core.scenes import Scene
+from vizzy_sim_bridge.core.urdf import EFFORT_LIMIT, head_urdf, matrix_to_rpy
+from vizzy_sim_bridge.sim_node import transform_messages
+from vizzy_vision.kinematics import (
     FRAME_NAMES,
     JOINT_LIMITS,
     JOINT_NAMES,
@@ -36,10 +40,6 @@ from vizzy_sim_bridge.core.kinematics import (
     static_transforms,
     world_transform,
 )
-from vizzy_sim_bridge.core.model import HeadSimulation
-from vizzy_sim_bridge.core.scenes import Scene
-from vizzy_sim_bridge.core.urdf import EFFORT_LIMIT, head_urdf, matrix_to_rpy
-from vizzy_sim_bridge.sim_node import transform_messages
 
 TOL = 1e-6
 TRIALS = 20

@@ -1,1 +1,1 @@
-"""Simulated Vizzy head (sim executable) and the gaze controller (gaze_controller executable)."""
+"""Simulated Vizzy head (the sim executable): MuJoCo cameras, RGB-D sensor, joints, tf, scenes."""

@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from vizzy_runtime.launcher import share_dir
+
 REPO = Path(__file__).resolve().parents[3]
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
@@ -67,13 +69,14 @@ def record(scene: str, out: Path, check: bool) -> int:
     if bag.exists():
         shutil.rmtree(bag)
     env = dict(os.environ)
+    gaze_config = share_dir('vizzy_gaze') / 'config' / 'gaze_controller.yaml'
     procs = [
         subprocess.Popen(VIZZY + ['run', 'vizzy_sim_bridge', 'sim', '--ros-args', '--params-file',
                                   str(CONFIG / 'sim.yaml'), '-p', f'scene:={scene}',
                                   '-p', f'rate_hz:={rate}', '-p', f'rgbd_rate_hz:={rgbd_rate}',
                                   '-p', f'initial_joint_positions:={initial}'], env=env),
-        subprocess.Popen(VIZZY + ['run', 'vizzy_sim_bridge', 'gaze_controller', '--ros-args',
-                                  '--params-file', str(CONFIG / 'gaze_controller.yaml'),
+        subprocess.Popen(VIZZY + ['run', 'vizzy_gaze', 'gaze_controller', '--ros-args',
+                                  '--params-file', str(gaze_config),
                                   '-p', 'use_sim_time:=true'], env=env),
     ]
     GazeCommand = message('active_vision_msgs/msg/GazeCommand')
@@ -142,8 +145,8 @@ def record(scene: str, out: Path, check: bool) -> int:
 
 def _report(scene: str, k: int, point: np.ndarray, joint_state: Any, state: Any) -> None:
     """Where the fixation point projects in both images with the joints the sim reports."""
-    from vizzy_sim_bridge.core.camera import camera_matrix, project
-    from vizzy_sim_bridge.core.kinematics import camera_poses
+    from vizzy_vision.camera import camera_matrix, project
+    from vizzy_vision.kinematics import camera_poses
     q = dict(zip(joint_state.name, (float(v) for v in joint_state.position), strict=True))
     kk = camera_matrix(640, 480, 85.4)
     offsets = {side: project(kk, pose, point[None])[0] - (319.5, 239.5)

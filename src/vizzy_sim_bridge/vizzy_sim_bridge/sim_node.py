@@ -56,7 +56,7 @@ import mujoco
 import numpy as np
 
 from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
-from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     Param,
     declare_parameters,
@@ -76,8 +76,14 @@ from vizzy_runtime.ros import (
     qos_profile_latched,
 )
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
-from vizzy_sim_bridge.core.camera import camera_matrix, project, projection_matrix
-from vizzy_sim_bridge.core.kinematics import (
+from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
+from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
+from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
+from vizzy_sim_bridge.core.scenes import SCENE_NAMES, SceneUnavailable, build_scene
+from vizzy_sim_bridge.core.urdf import head_urdf
+from vizzy_vision.camera import camera_matrix, project, projection_matrix
+from vizzy_vision.frames import rotation_matrix
+from vizzy_vision.kinematics import (
     BASELINE,
     CAMERA_FRAMES,
     JOINT_LIMITS,
@@ -86,15 +92,9 @@ from vizzy_sim_bridge.core.kinematics import (
     Transform,
     frames_in_base,
     joint_transforms,
-    rotation_matrix,
     static_transforms,
     world_transform,
 )
-from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
-from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
-from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
-from vizzy_sim_bridge.core.scenes import SCENE_NAMES, SceneUnavailable, build_scene
-from vizzy_sim_bridge.core.urdf import head_urdf
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 Clock = message('rosgraph_msgs/msg/Clock')
@@ -346,7 +346,7 @@ class SimNode(Node):
         self._noise_rng = np.random.default_rng(np.random.SeedSequence([int(p['seed']), 99]))
         self._last_tf_ns = -1
         self._publish_lock = threading.Lock()   # joints and tf go out from two threads
-        self._warned: dict[str, float] = {}
+        self._warn_throttled = ThrottledWarnings(self, 2.0)
         self._stop = threading.Event()
         self._render_thread: threading.Thread | None = None
 
@@ -411,11 +411,6 @@ class SimNode(Node):
             return stamp_msg(t)
         return self.get_clock().now().to_msg()
 
-    def _warn_throttled(self, key: str, text: str, period: float = 2.0) -> None:
-        now = time.monotonic()
-        if now - self._warned.get(key, -math.inf) >= period:
-            self._warned[key] = now
-            self.get_logger().warning(text)
 
     def _camera_info(self, k: np.ndarray, spec: CameraSpec, baseline_m: float,
                      frame_id: str) -> Any:

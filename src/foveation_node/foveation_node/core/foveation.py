@@ -36,7 +36,7 @@ from typing import Final
 import cv2
 import numpy as np
 
-from .image_checks import (
+from vizzy_vision.image_checks import (
     check_fixation,
     check_image,
     check_levels,

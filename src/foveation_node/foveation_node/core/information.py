@@ -24,8 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import erf
 
+from vizzy_vision.image_checks import (
+    check_fixation,
+    check_image,
+    check_levels,
+    check_positive,
+    check_size,
+)
+
 from .foveation import DEFAULT_LEVELS, fovea_sigmas, gaussian_sigmas, laplacian_levels_reference
-from .image_checks import check_fixation, check_image, check_levels, check_positive, check_size
 
 #: Power of quantisation noise for 1-level quantisation with truncation (Eq. 2.18).
 QUANTISATION_NOISE_POWER = 1.0 / 3.0

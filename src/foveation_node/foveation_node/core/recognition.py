@@ -305,16 +305,6 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     return TwoPassResult(first, second, probs1, probs2)
 
 
-def back_project(u: float, v: float, k: Sequence[float],
-                 distance: float) -> tuple[float, float, float]:
-    """The point at distance [m] along the ray of pixel (u, v) in the camera's optical frame
-    (x right, y down, z forward), for a camera matrix k (row-major 3x3, as CameraInfo.k)."""
-    fx, cx, fy, cy = float(k[0]), float(k[2]), float(k[4]), float(k[5])
-    ray = np.array([(u - cx) / fx, (v - cy) / fy, 1.0])
-    p = distance * ray / np.linalg.norm(ray)
-    return (float(p[0]), float(p[1]), float(p[2]))
-
-
 def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
                    min_score: float, min_offset_px: float) -> Detection | None:
     """The detection to saccade to: the best-scoring one (detections come best first) if its
@@ -331,6 +321,6 @@ def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
 
 __all__ = ['Box', 'Classifier', 'DEFAULT_INPUT_SIZE', 'DEFAULT_THRESHOLD', 'DEFAULT_TOP_K',
            'Detection', 'IMAGENET_MEAN', 'IMAGENET_STD', 'ModelError', 'Preprocessing',
-           'TwoPassResult', 'back_project', 'load_labels', 'load_preprocessing', 'localise',
+           'TwoPassResult', 'load_labels', 'load_preprocessing', 'localise',
            'merge_second_pass', 'preprocessing_path_for', 'saccade_target', 'saliency_box',
            'two_pass']

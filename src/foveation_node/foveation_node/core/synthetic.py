@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .image_checks import check_size
+from vizzy_vision.image_checks import check_size
 
 
 def white_noise(width: int, height: int, channels: int = 3, std: float = 40.0,

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from foveation_node.core.logpolar import LogPolarRetina
+from vizzy_vision.logpolar import LogPolarRetina
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from foveation_node.core.logpolar import LogPolarRetina
+from vizzy_vision.logpolar import LogPolarRetina
 
 from .geometry import epipolar_distance
 from .multires import (  # noqa: F401 (re-exported)

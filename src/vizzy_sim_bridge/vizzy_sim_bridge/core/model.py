@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .camera import (
+from vizzy_vision.camera import (
     EYE_HEIGHT,
     EYE_HFOV_DEG,
     EYE_WIDTH,
@@ -37,7 +37,8 @@ from .camera import (
     RGBD_WIDTH,
     fovy_deg,
 )
-from .kinematics import (
+from vizzy_vision.frames import quaternion_about, to_wxyz
+from vizzy_vision.kinematics import (
     CAMERA_FORWARD,
     EGO_HEIGHT,
     EYE_OFFSET,
@@ -53,8 +54,8 @@ from .kinematics import (
     VELOCITY_LIMITS,
     WAIST_HEIGHT,
     clamp_to_limits,
-    quaternion_about,
 )
+
 from .scenes import Scene
 
 TIMESTEP = 0.002   # [s]: physics at 500 Hz
@@ -82,7 +83,8 @@ def _f(*values: float) -> str:
 
 
 def _mj_quat(q: tuple[float, float, float, float]) -> str:
-    return _f(q[3], q[0], q[1], q[2])
+    """MJCF quat attribute (w x y z) of a quaternion (x, y, z, w)."""
+    return _f(*to_wxyz(q))
 
 
 # MuJoCo cameras look along their -z with y up; the optical frame looks along +z with y down:

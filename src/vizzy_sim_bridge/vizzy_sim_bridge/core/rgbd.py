@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vizzy_vision.pointcloud import pack_rgb
+
 XTION_SIGMA_COEFFICIENT = 1.425e-3   # [1/m]: sigma_z = c z^2 (Khoshelham & Elberink 2012)
 XTION_MIN_RANGE, XTION_MAX_RANGE = 0.5, 3.5   # [m]
 
@@ -45,21 +47,6 @@ def noisy_depth(depth: np.ndarray, rng: np.random.Generator | None,
     return z
 
 
-def pack_rgb(rgb: np.ndarray) -> np.ndarray:
-    """H x W x 3 uint8 colours as H x W float32 whose bits are 0x00RRGGBB (PCL's packed rgb)."""
-    rgb = np.asarray(rgb, dtype=np.uint8)
-    packed = ((rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8)
-              | rgb[..., 2].astype(np.uint32))
-    return packed.view(np.float32)
-
-
-def unpack_rgb(packed: np.ndarray) -> np.ndarray:
-    """Inverse of pack_rgb: ... x 3 uint8."""
-    bits = np.ascontiguousarray(packed, dtype=np.float32).view(np.uint32)
-    return np.stack([(bits >> 16) & 0xFF, (bits >> 8) & 0xFF, bits & 0xFF],
-                    axis=-1).astype(np.uint8)
-
-
 class DepthProjector:
     """Back-projects depth images of one pinhole camera (K) into organized point clouds."""
 
@@ -87,4 +74,4 @@ class DepthProjector:
 
 
 __all__ = ['CLOUD_DTYPE', 'DepthProjector', 'XTION_MAX_RANGE', 'XTION_MIN_RANGE',
-           'XTION_SIGMA_COEFFICIENT', 'depth_sigma', 'noisy_depth', 'pack_rgb', 'unpack_rgb']
+           'XTION_SIGMA_COEFFICIENT', 'depth_sigma', 'noisy_depth']

@@ -31,7 +31,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .kinematics import EGO_HEIGHT, WAIST_HEIGHT, matrix_to_quaternion
+from vizzy_vision.frames import matrix_to_quaternion, quaternion_yaw, quaternion_z_to, to_wxyz
+from vizzy_vision.kinematics import EGO_HEIGHT, WAIST_HEIGHT
 
 SCENE_NAMES: tuple[str, ...] = ('tabletop', 'visual_search', 'pedestrians')
 
@@ -124,27 +125,9 @@ def _f(*values: float) -> str:
     return ' '.join(f'{float(v):.6g}' for v in values)
 
 
-def quat_z_to(axis: np.ndarray) -> tuple[float, float, float, float]:
-    """Quaternion (x, y, z, w) rotating +z onto the unit vector axis."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    c = float(a[2])
-    if c < -1.0 + 1e-12:
-        return (1.0, 0.0, 0.0, 0.0)
-    v = np.cross([0.0, 0.0, 1.0], a)
-    w = 1.0 + c
-    q = np.array([v[0], v[1], v[2], w])
-    q /= np.linalg.norm(q)
-    return tuple(float(x) for x in q)  # type: ignore[return-value]
-
-
-def quat_yaw(yaw: float) -> tuple[float, float, float, float]:
-    return (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
-
-
 def _mj_quat(q: tuple[float, float, float, float]) -> str:
-    """MJCF quat attribute (w x y z) from (x, y, z, w)."""
-    return _f(q[3], q[0], q[1], q[2])
+    """MJCF quat attribute (w x y z) of a quaternion (x, y, z, w)."""
+    return _f(*to_wxyz(q))
 
 
 def _rgba(c: tuple[float, ...]) -> str:
@@ -296,7 +279,7 @@ class _Builder:
 def _cylinder_xml(name: str, pos_w: np.ndarray, axis: np.ndarray, radius: float, height: float,
                   rgba: tuple[float, ...], extra: str = '') -> str:
     """A static body holding a cylinder (axis = body z) and any extra geoms in body coordinates."""
-    return (f'<body name="{name}" pos="{_f(*pos_w)}" quat="{_mj_quat(quat_z_to(axis))}">'
+    return (f'<body name="{name}" pos="{_f(*pos_w)}" quat="{_mj_quat(quaternion_z_to(axis))}">'
             f'<geom type="cylinder" size="{_f(radius, height / 2.0)}" rgba="{_rgba(rgba)}"/>'
             f'{extra}</body>')
 
@@ -307,7 +290,7 @@ def _cylinder_truth(name: str, kind: str, pos_w: np.ndarray, axis: np.ndarray, r
     a = np.asarray(axis, dtype=np.float64)
     a = a / np.linalg.norm(a)
     return dict(name=name, kind=kind, shape='cylinder', position=_base(pos_w),
-                orientation=quat_z_to(a), size=(2 * radius, 2 * radius, height),
+                orientation=quaternion_z_to(a), size=(2 * radius, 2 * radius, height),
                 color=tuple(rgba), radius=radius, height=height,
                 axis=(float(a[0]), float(a[1]), float(a[2])), lid=lid, role=role)
 
@@ -465,7 +448,7 @@ def tabletop(seed: int) -> Scene:
         color = _DISTRACTOR_COLORS[int(rng.integers(len(_DISTRACTOR_COLORS)))]
         x, y = _place(rng, placed, 0.5 * math.hypot(sx, sy) + 0.005, xr, yr)
         p = on_table(x, y, sz / 2)
-        q = quat_yaw(yaw)
+        q = quaternion_yaw(yaw)
         name = f'box_{i}'
         b.add(dict(name=name, kind='box', shape='box', position=_base(p), orientation=q,
                    size=(float(sx), float(sy), sz), color=color),
@@ -487,7 +470,7 @@ def tabletop(seed: int) -> Scene:
     yaw = float(rng.uniform(0, np.pi))
     x, y = _place(rng, placed, span / 2 + 0.02, xr, yr)
     p = on_table(x, y, (post_h + rr) / 2)
-    q = quat_yaw(yaw)
+    q = quaternion_yaw(yaw)
     hz = (post_h + rr) / 2
     handle = (f'<body name="handle_0" pos="{_f(*p)}" quat="{_mj_quat(q)}">'
               f'<geom type="capsule" fromto="{_f(-span / 2, 0, -hz + rr, -span / 2, 0, hz - rr)}" '
@@ -677,7 +660,7 @@ def pedestrian_boxes(raw: list[dict[str, Any]]) -> list[dict[str, Any]]:
         elif 'quaternion' in box or 'orientation' in box:
             q = tuple(float(v) for v in box['quaternion' if 'quaternion' in box else 'orientation'])
         else:
-            q = quat_yaw(float(box.get('yaw', 0.0)))
+            q = quaternion_yaw(float(box.get('yaw', 0.0)))
         out.append({'id': int(box.get('id', k)), 'center': _base(center),
                     'size': tuple(float(v) for v in size), 'orientation': q,
                     'label': str(box.get('label', 'person'))})

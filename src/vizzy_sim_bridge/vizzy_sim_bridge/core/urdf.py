@@ -35,18 +35,18 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from .kinematics import (
+from vizzy_vision.frames import quaternion_multiply, rotation_matrix
+from vizzy_vision.kinematics import (
     FRAME_NAMES,
     JOINT_LIMITS,
     JOINT_NAMES,
     VELOCITY_LIMITS,
     Transform,
     joint_transforms,
-    quaternion_multiply,
-    rotation_matrix,
     static_transforms,
     world_transform,
 )
+
 from .model import ROBOT_GROUP, compile_model
 
 ROBOT_NAME = 'vizzy_head'

@@ -74,7 +74,7 @@ class TabletopViews:
     """Renders tabletop(seed) from the left eye; one GL context per scene seed, one per thread."""
 
     def __init__(self, width: int = 640, height: int = 480) -> None:
-        from vizzy_sim_bridge.core.camera import EYE_HFOV_DEG, camera_matrix
+        from vizzy_vision.camera import EYE_HFOV_DEG, camera_matrix
 
         self.width, self.height = int(width), int(height)
         self.k = camera_matrix(self.width, self.height, EYE_HFOV_DEG)
@@ -84,10 +84,10 @@ class TabletopViews:
     def _load(self, seed: int) -> None:
         import mujoco
 
-        from vizzy_sim_bridge.core.camera import EYE_HFOV_DEG
         from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
         from vizzy_sim_bridge.core.render import CameraRenderer
         from vizzy_sim_bridge.core.scenes import tabletop
+        from vizzy_vision.camera import EYE_HFOV_DEG
 
         scene = tabletop(seed)
         sim = HeadSimulation(scene, eye=CameraSpec(self.width, self.height, EYE_HFOV_DEG))

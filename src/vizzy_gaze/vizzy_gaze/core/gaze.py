@@ -49,7 +49,7 @@ from enum import Enum
 
 import numpy as np
 
-from vizzy_sim_bridge.core import kinematics
+from vizzy_vision import kinematics
 
 NECK_PAN, NECK_TILT, EYES_TILT, LEFT_EYE, RIGHT_EYE = (
     'neck_pan_joint', 'neck_tilt_joint', 'eyes_tilt_joint', 'l_eye_joint', 'r_eye_joint')

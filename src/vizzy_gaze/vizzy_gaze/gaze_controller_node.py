@@ -66,12 +66,7 @@ from typing import Any
 
 import numpy as np
 
-from vizzy_runtime.input_health import InputHealth
-from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
-from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
-from vizzy_runtime.tf import TransformBuffer, TransformListener
-from vizzy_sim_bridge.core import kinematics
-from vizzy_sim_bridge.core.gaze import (
+from vizzy_gaze.core.gaze import (
     BASE_FRAME,
     Claim,
     GazeError,
@@ -88,6 +83,11 @@ from vizzy_sim_bridge.core.gaze import (
     solve_fixation,
     velocity_limits,
 )
+from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
+from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_vision import kinematics
 
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')

@@ -18,11 +18,18 @@ Needs mujoco and vizzy_sim_bridge (training, experiments, tests); the node does 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from vizzy_vision.frames import (
+    axis_angle_matrix,
+    from_wxyz,
+    matrix_to_quaternion,
+    rotation_matrix,
+    to_wxyz,
+)
 
 CLASSES: tuple[str, ...] = ('can', 'bottle', 'jar', 'box', 'sphere', 'handle', 'pipe')
 CAMERA = 'left_camera'
@@ -128,29 +135,7 @@ def build_scene(seed: int = 0) -> Any:
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:
     q = rng.normal(size=4)
     q /= np.linalg.norm(q)
-    return _quat_matrix(q)
-
-
-def _quat_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a quaternion (w, x, y, z)."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _axis_angle(axis: np.ndarray | Sequence[float], angle: float) -> np.ndarray:
-    a = np.asarray(axis, float) / np.linalg.norm(axis)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
-
-
-def _matrix_quat(m: np.ndarray) -> np.ndarray:
-    """Quaternion (w, x, y, z) of a rotation matrix (MuJoCo's convention)."""
-    import mujoco
-    q = np.empty(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(m, dtype=np.float64).ravel())
-    return q
+    return rotation_matrix(from_wxyz(q))   # q drawn in MuJoCo order (w, x, y, z)
 
 
 def _hsv_colour(rng: np.random.Generator, sat: tuple[float, float] = (0.0, 1.0)) -> np.ndarray:
@@ -170,9 +155,9 @@ class ObjectViews:
     def __init__(self, width: int = 640, height: int = 480, seed: int = 0) -> None:
         import mujoco
 
-        from vizzy_sim_bridge.core.camera import EYE_HFOV_DEG, camera_matrix
         from vizzy_sim_bridge.core.model import CameraSpec, compile_model
         from vizzy_sim_bridge.core.render import CameraRenderer
+        from vizzy_vision.camera import EYE_HFOV_DEG, camera_matrix
 
         self.width, self.height = int(width), int(height)
         spec = CameraSpec(self.width, self.height, EYE_HFOV_DEG)
@@ -224,7 +209,7 @@ class ObjectViews:
     def _place(self, body: str, pos: np.ndarray, rot: np.ndarray) -> None:
         i = self._mocap[body]
         self.data.mocap_pos[i] = pos
-        self.data.mocap_quat[i] = _matrix_quat(rot)
+        self.data.mocap_quat[i] = to_wxyz(matrix_to_quaternion(rot))
         self._shown.append(body)
 
     def _project(self, points: np.ndarray) -> np.ndarray:
@@ -261,13 +246,13 @@ class ObjectViews:
         pos = self._world_point(u, v, z)
 
         # pose: upright with a random yaw and a slight tilt, or lying (pipes, some cans)
-        yaw = _axis_angle([0, 0, 1], float(rng.uniform(0, 2 * math.pi)))
-        tilt = _axis_angle([1, 0, 0], float(rng.normal(0, 0.15)))
+        yaw = axis_angle_matrix([0, 0, 1], float(rng.uniform(0, 2 * math.pi)))
+        tilt = axis_angle_matrix([1, 0, 0], float(rng.normal(0, 0.15)))
         lying = cls == 'pipe' or (cls in ('can', 'bottle') and rng.random() < 0.25)
         if cls == 'sphere':
             rot = _random_rotation(rng)
         elif lying:
-            rot = yaw @ _axis_angle([1, 0, 0], math.pi / 2 + float(rng.normal(0, 0.2)))
+            rot = yaw @ axis_angle_matrix([1, 0, 0], math.pi / 2 + float(rng.normal(0, 0.2)))
         else:
             rot = yaw @ tilt
         self._place(body, pos, rot)
@@ -283,8 +268,8 @@ class ObjectViews:
         # backdrop facing the camera (tilted), 0.3-2.5 m behind the object, any texture
         back = self._world_point(float(rng.uniform(0, w)), float(rng.uniform(0, h)),
                                  z + float(rng.uniform(0.3, 2.5)))
-        facing = _axis_angle([1, 0, 0], float(rng.uniform(-0.5, 0.5))) @ \
-            _axis_angle([0, 1, 0], float(rng.uniform(-0.5, 0.5)))
+        facing = axis_angle_matrix([1, 0, 0], float(rng.uniform(-0.5, 0.5))) @ \
+            axis_angle_matrix([0, 1, 0], float(rng.uniform(-0.5, 0.5)))
         self._place('backdrop', back, self._cam_rot @ facing)
         m.geom_matid[self._geoms['backdrop'][0]] = self._materials[int(rng.integers(TEXTURES))]
         mujoco.mj_kinematics(m, d)

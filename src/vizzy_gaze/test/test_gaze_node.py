@@ -14,11 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
-from vizzy_runtime.testing import publish_until, spinning, wait_until
-from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
-from vizzy_sim_bridge.core import kinematics
-from vizzy_sim_bridge.core.gaze import (
+from vizzy_gaze.core.gaze import (
     LEFT_OPTICAL_FRAME,
     RIGHT_OPTICAL_FRAME,
     GazeSplit,
@@ -27,7 +23,11 @@ from vizzy_sim_bridge.core.gaze import (
     solve_fixation,
     velocity_limits,
 )
-from vizzy_sim_bridge.gaze_controller_node import PARAMETERS, GazeControllerNode
+from vizzy_gaze.gaze_controller_node import PARAMETERS, GazeControllerNode
+from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
+from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
+from vizzy_vision import kinematics
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 

@@ -67,8 +67,8 @@ class SimRenderer:
     """Renders tabletop frames: one GL context, reused across seeds (one per thread)."""
 
     def __init__(self, width: int = 640, height: int = 480) -> None:
-        from vizzy_sim_bridge.core.camera import camera_matrix
         from vizzy_sim_bridge.core.model import RGBD_CAMERA
+        from vizzy_vision.camera import camera_matrix
         self.width, self.height = width, height
         k = camera_matrix(width, height, RGBD_CAMERA.hfov_deg)
         self.k = k
@@ -86,16 +86,12 @@ class SimRenderer:
         Xtion's; 0 = none). RuntimeError if the scene builder cannot place the seed's objects."""
         import mujoco
 
-        from vizzy_sim_bridge.core.kinematics import (
-            JOINT_NAMES,
-            RGBD_FRAME,
-            frames_in_base,
-            rotation_matrix,
-        )
         from vizzy_sim_bridge.core.model import HeadSimulation
         from vizzy_sim_bridge.core.render import CameraRenderer
         from vizzy_sim_bridge.core.rgbd import XTION_SIGMA_COEFFICIENT, DepthProjector, noisy_depth
         from vizzy_sim_bridge.core.scenes import tabletop
+        from vizzy_vision.frames import rotation_matrix
+        from vizzy_vision.kinematics import JOINT_NAMES, RGBD_FRAME, frames_in_base
 
         if self._model_key != seed:   # one model (and GL context with its textures) per scene
             scene = tabletop(seed)

@@ -51,6 +51,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .frames import quaternion_about, rotation_matrix
+
 JOINT_NAMES: tuple[str, ...] = (
     'neck_pan_joint', 'neck_tilt_joint', 'eyes_tilt_joint', 'l_eye_joint', 'r_eye_joint')
 
@@ -116,52 +118,6 @@ class Transform(NamedTuple):
     child: str
     translation: tuple[float, float, float]
     rotation: tuple[float, float, float, float]
-
-
-def quaternion_about(axis: str, angle: float) -> tuple[float, float, float, float]:
-    """Quaternion (x, y, z, w) of a rotation by angle [rad] about the 'x', 'y' or 'z' axis."""
-    s, c = math.sin(angle / 2.0), math.cos(angle / 2.0)
-    return {'x': (s, 0.0, 0.0, c), 'y': (0.0, s, 0.0, c), 'z': (0.0, 0.0, s, c)}[axis]
-
-
-def quaternion_multiply(a: Sequence[float],
-                        b: Sequence[float]) -> tuple[float, float, float, float]:
-    """Hamilton product a * b of quaternions (x, y, z, w)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz)
-
-
-def rotation_matrix(q: Sequence[float]) -> np.ndarray:
-    """3x3 rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def matrix_to_quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
-    """Unit quaternion (x, y, z, w), w >= 0, of a 3x3 rotation matrix."""
-    r = np.asarray(r, dtype=np.float64)
-    tr = r[0, 0] + r[1, 1] + r[2, 2]
-    if tr > 0.0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = ((r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s)
-    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
-        q = (0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s, (r[2, 1] - r[1, 2]) / s)
-    elif r[1, 1] > r[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
-        q = ((r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s, (r[0, 2] - r[2, 0]) / s)
-    else:
-        s = 2.0 * math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
-        q = ((r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s, (r[1, 0] - r[0, 1]) / s)
-    n = math.sqrt(sum(c * c for c in q))
-    q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
-    return q if q[3] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
 
 
 def joint_vector(positions: Mapping[str, float] | Sequence[float]) -> dict[str, float]:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from foveation_node.core.logpolar import LogPolarRetina
 from foveation_node.core.synthetic import pink_noise
+from vizzy_vision.logpolar import LogPolarRetina
 
 W, H = 320, 240
 

@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vizzy_sim_bridge.core import kinematics
-from vizzy_sim_bridge.core.gaze import (
+from vizzy_gaze.core.gaze import (
     LEFT_OPTICAL_FRAME,
     MIN_JERK_PEAK,
     RIGHT_OPTICAL_FRAME,
@@ -33,6 +32,7 @@ from vizzy_sim_bridge.core.gaze import (
     solve_fixation,
     velocity_limits,
 )
+from vizzy_vision import kinematics
 
 # The test camera of the brief: 640x480, 85.4 deg horizontal field of view, no distortion.
 WIDTH, HEIGHT, HFOV_DEG = 640, 480, 85.4

@@ -1,11 +1,12 @@
 """Train the default recognition CNN of the foveation node on simulator renders.
 
-    .venv/bin/python -m foveation_node.train_classifier [--train 3500] [--val 700] [--epochs 30]
+    .venv/bin/python -m foveation_node.training.train_classifier [--train 3500] [--val 700]
+        [--epochs 30]
         [--cache /tmp/views.npz] [--tabletop 200 --tabletop-val 40 --tabletop-cache /tmp/tt.npz]
         [--init foveation_node/models/foveation_cnn.pt]
     train_foveation_classifier ...                        # the console entry point
 
---tabletop N adds cluttered views (core.tabletop_views: N tabletop scenes not used by the
+--tabletop N adds cluttered views (training.tabletop_views: N tabletop scenes not used by the
 experiment, TABLETOP_POSES random head poses each): every unoccluded object in view gives one
 image foveated (K = 5, f_0 uniform in 60-160 px) at its centre plus a small random offset,
 labelled with the object under that point (the object the node's pass 2 has its fovea on);
@@ -13,7 +14,7 @@ classes are balanced by sampling, and the single-object and tabletop views are d
 --init fine-tunes a model (same architecture; its
 preprocessing is kept) instead of starting from scratch.
 
-Renders single-object views (core.object_views: the classes of our scenes, random pose,
+Renders single-object views (training.object_views: the classes of our scenes, random pose,
 colours, backdrop textures, table, lighting, depth and position in the image) with the left
 eye camera at 640x480, resizes them to the network's 227x227 input and trains a small CNN on
 the unfoveated images, as the thesis's ImageNet networks were trained on normal images. The
@@ -43,10 +44,12 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from vizzy_vision.optional import main_needing_simulator
+
 if TYPE_CHECKING:                   # torch is imported where it is used (slow to import)
     import torch
 
-MODELS_DIR = Path(__file__).resolve().parent / 'models'
+MODELS_DIR = Path(__file__).resolve().parents[1] / 'models'
 MODEL_NAME = 'foveation_cnn'
 INPUT_SIZE = (227, 227)
 TABLETOP_SEED0 = 10000          # training scenes; held-out: TABLETOP_VAL_SEED0; experiment: 500
@@ -81,7 +84,7 @@ def render_set(n: int, seed: int, desc: str) -> tuple[np.ndarray, np.ndarray]:
     """n views (balanced classes) resized to INPUT_SIZE: (n, h, w, 3) uint8 and (n,) labels."""
     from tqdm import tqdm
 
-    from foveation_node.core.object_views import CLASSES, ObjectViews
+    from foveation_node.training.object_views import CLASSES, ObjectViews
 
     images = np.empty((n, INPUT_SIZE[1], INPUT_SIZE[0], 3), np.uint8)
     labels = np.arange(n) % len(CLASSES)
@@ -98,7 +101,7 @@ def render_tabletop_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray,
     from tqdm import tqdm
 
     from foveation_node.core.foveation import Foveator
-    from foveation_node.core.tabletop_views import TabletopViews, object_at, random_joints
+    from foveation_node.training.tabletop_views import TabletopViews, object_at, random_joints
 
     rng = np.random.default_rng(seed0)
     images: list[np.ndarray] = []
@@ -128,7 +131,7 @@ def render_tabletop_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray,
     return np.stack(images), np.asarray(labels, np.int64)
 
 
-def main(argv: list[str] | None = None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--train', type=int, default=3500, help='training views (rendered)')
     parser.add_argument('--val', type=int, default=700, help='held-out views (rendered)')
@@ -153,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     from torch import nn
     from tqdm import tqdm
 
-    from foveation_node.core.object_views import CLASSES
+    from foveation_node.training.object_views import CLASSES
 
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
@@ -300,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
             'train_s': round(train_s, 1),
             'torch_threads': args.threads,
             'images': 'single-object views: unfoveated 640x480 left-eye renders resized to 227x227 '
-                      '(core.object_views)',
+                      '(training.object_views)',
         },
     }
     if args.init is not None:
@@ -328,6 +331,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f'wrote {model_path} ({os.path.getsize(model_path) / 1024:.0f} KiB), labels and '
           f'{MODEL_NAME}.json; render {render_s:.0f} s, train {train_s:.0f} s')
     return 0
+
+
+main = main_needing_simulator(_main, 'train_foveation_classifier')
 
 
 if __name__ == '__main__':

@@ -18,10 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .core.accumulator import TABLE_4_1
-from .core.classifier import extract_patch
-from .core.fitting import FitParams, fit_cylinder, make_directions, rotation_to_z
-from .core.segmentation import SegmentParams, segment_tabletop
+from cylinder_detector_node.core.accumulator import TABLE_4_1
+from cylinder_detector_node.core.classifier import extract_patch
+from cylinder_detector_node.core.fitting import (
+    FitParams,
+    fit_cylinder,
+    make_directions,
+    rotation_to_z,
+)
+from cylinder_detector_node.core.segmentation import SegmentParams, segment_tabletop
+
 from .sim_frames import SimFrame
 
 MIN_PURITY = 0.7

@@ -1,4 +1,4 @@
-"""Launch the gaze controller (vizzy_sim_bridge gaze_controller), config/gaze_controller.yaml."""
+"""Launch the gaze controller (vizzy_gaze gaze_controller), config/gaze_controller.yaml."""
 
 import os
 
@@ -12,13 +12,13 @@ from launch_ros.parameter_descriptions import ParameterValue
 
 def generate_launch_description() -> LaunchDescription:
     config = os.path.join(
-        get_package_share_directory('vizzy_sim_bridge'), 'config', 'gaze_controller.yaml')
+        get_package_share_directory('vizzy_gaze'), 'config', 'gaze_controller.yaml')
     return LaunchDescription([
         DeclareLaunchArgument(
             'use_sim_time', default_value='false',
             description='Follow /clock (true with the sim, or a bag played with --clock).'),
         Node(
-            package='vizzy_sim_bridge',
+            package='vizzy_gaze',
             executable='gaze_controller',
             name='gaze_controller',
             output='screen',

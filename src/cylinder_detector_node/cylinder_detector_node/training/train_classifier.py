@@ -3,7 +3,7 @@ simulated tabletops.
 
     ros2 run cylinder_detector_node train_cylinder_classifier [--scenes 150] [--poses 3]
         [--epochs 15]
-    python -m cylinder_detector_node.train_classifier --out my_model.pt
+    python -m cylinder_detector_node.training.train_classifier --out my_model.pt
 
 Data, the thesis's semi-automatic way: vizzy_sim_bridge's tabletop(seed) scenes (cylinders: cans,
 bottles, jars, lying cans and pipes; not: boxes, spheres, U-shaped handles) rendered by the RGB-D
@@ -29,6 +29,8 @@ for _v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ.setdefault(_v, '1')
 
 import numpy as np  # noqa: E402
+
+from vizzy_vision.optional import main_needing_simulator  # noqa: E402
 
 HELD_OUT_SEED = 10000
 DEFAULT_CACHE = (Path(os.environ.get('XDG_CACHE_HOME', Path.home() / '.cache')) / 'vizzy'
@@ -89,7 +91,7 @@ def average_precision(scores: np.ndarray, labels: np.ndarray) -> float:
     return float((precision * y).sum() / max(y.sum(), 1.0))
 
 
-def main(argv: list[str] | None = None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     # the first paragraph of the module docstring, as one line
     ap = argparse.ArgumentParser(description=' '.join(__doc__.split('\n\n')[0].split()))
     ap.add_argument('--scenes', type=int, default=150, help='training scenes (seeds 0..N-1)')
@@ -108,7 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     import torch
     from tqdm import tqdm
 
-    from .core.classifier import DEFAULT_MODEL, PatchClassifier, PatchNet
+    from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier, PatchNet
+
     from .patch_data import MIN_PURITY
 
     torch.set_num_threads(args.threads)
@@ -189,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
           f'threshold: {acc_fit:.3f}); average precision {ap_cnn:.3f} vs {ap_fit:.3f}; saved {out} '
           f'({out.stat().st_size / 1024:.0f} KiB) in {time.monotonic() - t0:.0f} s', flush=True)
     return 0
+
+
+main = main_needing_simulator(_main, 'train_cylinder_classifier')
 
 
 if __name__ == '__main__':

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vizzy_sim_bridge.core import kinematics
-from vizzy_sim_bridge.core.gaze import solve_fixation
+from vizzy_gaze.core.gaze import solve_fixation
+from vizzy_vision import kinematics
 
 mujoco = pytest.importorskip('mujoco')
 model_mod = pytest.importorskip('vizzy_sim_bridge.core.model')
