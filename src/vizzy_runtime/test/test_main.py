@@ -45,6 +45,28 @@ def _lines(proc: subprocess.Popen[str]) -> queue.Queue[str]:
     return lines
 
 
+def _publishes_gaze_state(deadline: float) -> bool:
+    """Whether a /gaze/state arrives here before the deadline (the node under test spins)."""
+    from vizzy_runtime.ros import Context, Node, SingleThreadedExecutor, message
+    from vizzy_runtime.testing import wait_until
+
+    context = Context()
+    context.init()
+    try:
+        node = Node('gaze_state_probe', context=context)
+        got: list[object] = []
+        node.create_subscription(message('active_vision_msgs/msg/GazeState'), '/gaze/state',
+                                 got.append, 10)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        ok = wait_until(lambda: bool(got), max(1.0, deadline - time.monotonic()), executor)
+        executor.shutdown()
+        node.destroy_node()
+        return ok
+    finally:
+        context.try_shutdown()
+
+
 def test_repeated_sigint_during_clean_up_exits_cleanly() -> None:
     proc = _node()
     lines = _lines(proc)
@@ -57,6 +79,9 @@ def test_repeated_sigint_during_clean_up_exits_cleanly() -> None:
             proc.kill()
             pytest.fail(f'no start-up line within {STARTUP_TIMEOUT} s: {"".join(seen)[-2000:]}')
         assert seen[-1] or proc.poll() is None, f'the node ended early: {"".join(seen)[-2000:]}'
+    # Spinning, not just built: the start-up line is printed before rcl sends it to /rosout, and
+    # a signal in between makes rcl print that the rosout publisher's context is invalid.
+    assert _publishes_gaze_state(deadline), f'no /gaze/state: {"".join(seen)[-2000:]}'
     for gap in (0.05, 0.05, 0.0):     # a terminal's Ctrl-C, launch's SIGINT, one more
         proc.send_signal(signal.SIGINT)
         time.sleep(gap)

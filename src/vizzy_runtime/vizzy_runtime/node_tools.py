@@ -592,6 +592,10 @@ def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
     node = None
     try:
         rclpy.init(args=args)
+        # The executor spin() uses, made now: built after a signal shut the context down (during
+        # the node's seconds of start-up) rclpy's constructor fails half-way and its __del__
+        # prints a traceback at exit.
+        rclpy.get_global_executor()
         node = node_factory()
         # What start-up built (modules, models, caches) becomes permanent: the collector's full
         # passes never walk it again, nor does the final collection at exit (foveation stopped in
