@@ -357,6 +357,7 @@ class CylinderDetectorNode(Node):
         torch.set_num_threads(1)
         self.classifier: PatchClassifier | None = None
         self.last_classified = False        # whether the last cloud went through the classifier
+        self.classifier_skipped: str | None = None   # why the last cloud did not, when it was on
         self._load_classifier()
 
         self.tf_buffer = TransformBuffer()     # "up" of each cloud's frame (up_frame's +z)
@@ -470,18 +471,21 @@ class CylinderDetectorNode(Node):
             self._publish(msg.header, [])
             return None
         seg, fit = self._params
-        image, classifier = None, None
+        image, classifier, skipped = None, None, None
         if self._p['use_classifier'] and self.classifier is not None:
             image, why = self.matching_image(msg.header.stamp)
+            kind = 'no matching image'
             if image is not None:
                 problem = image_problem(image, xyz.shape)
                 if problem is None:
                     classifier = self.classifier
                 else:
-                    why = problem
-            if classifier is None:
-                self._warn_throttled('image', f'{self._cloud_topic}: detecting without the '
-                                              f'classifier: {why}')
+                    why, kind = problem, 'image mismatch'
+            if classifier is None:      # each reason throttled on its own
+                skipped = why
+                self._warn_throttled(kind, f'{self._cloud_topic}: detecting without the '
+                                           f'classifier: {why}')
+        self.classifier_skipped = skipped
         seg = replace(seg, up=self.cloud_up(msg.header.frame_id))
         det = detect_cylinders(xyz, seg, fit, image=image, classifier=classifier,
                                classifier_threshold=self._p['classifier_threshold'])

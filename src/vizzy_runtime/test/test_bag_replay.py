@@ -13,7 +13,7 @@ import pytest
 from vizzy_runtime import dds, msgs
 from vizzy_runtime.bag import Player
 from vizzy_runtime.launcher import Launcher, load_graph
-from vizzy_runtime.testing import repo_root, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, repo_root, wait_until
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import graph_subset  # noqa: E402
@@ -35,7 +35,7 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
     bag = repo_root() / 'bags' / scene
     path = graph_subset(tmp_path / 'graph.yaml', list(OUTPUTS), use_sim_time=True)
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
-    launcher = Launcher(load_graph(path), output=log)
+    launcher = Launcher(load_graph(path), output=log, grace_s=STOP_GRACE_S)
     readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=100))
                for n, (t, ty) in OUTPUTS.items()}
     disc = dds.Discovery()

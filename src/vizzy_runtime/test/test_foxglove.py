@@ -17,7 +17,7 @@ from vizzy_runtime.convert import image_to_numpy
 from vizzy_runtime.foxglove_layout import LAYOUT_FILE, layout_json, topics_named
 from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph
 from vizzy_runtime.live_view import LiveView
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, wait_until
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from foxglove_client import collect  # noqa: E402
@@ -47,7 +47,8 @@ def test_a_bad_port_is_one_clear_error() -> None:
 @pytest.mark.live
 def test_foxglove_client_decodes_the_graph(tmp_path: Path) -> None:
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
-    launcher = Launcher(load_graph(default_graph_file()), output=log)
+    launcher = Launcher(load_graph(default_graph_file()), output=log,
+                        grace_s=STOP_GRACE_S)
     view = LiveView(port=0)
     port = view.start()
     try:

@@ -27,7 +27,7 @@ from vizzy_runtime.launcher import (
     node_command,
     node_namespace,
 )
-from vizzy_runtime.testing import bound_addresses, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, bound_addresses, wait_until
 
 OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
            '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states', '/clock'}
@@ -40,7 +40,7 @@ def test_graph_starts_and_stops_cleanly(tmp_path):
     assert {n.name for n in graph.nodes} == {'sim', 'gaze_controller', 'foveation', 'stereo_ses',
                                              'cylinder_detector', 'mot_planner'}
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
-    launcher = Launcher(graph, output=log)
+    launcher = Launcher(graph, output=log, grace_s=STOP_GRACE_S)
     disc = dds.Discovery()
     readers: dict[str, dds.RawReader] = {}
     heard: set[str] = set()
@@ -252,7 +252,7 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
     data.update(respawn=True, respawn_delay=0.0)
     path.write_text(yaml.safe_dump(data))
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
-    launcher = Launcher(load_graph(path), output=log)
+    launcher = Launcher(load_graph(path), output=log, grace_s=STOP_GRACE_S)
     reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState',
                            dds.QoS(reliable=False))
     try:
@@ -289,7 +289,7 @@ def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
                                   arguments=['--ros-args', '-p', 'use_sim_time:=false'])],
                   respawn=True, respawn_delay=0.0)
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
-    launcher = Launcher(graph, output=log)
+    launcher = Launcher(graph, output=log, grace_s=STOP_GRACE_S)
     try:
         launcher.start()
         assert wait_until(lambda: launcher.poll()['bad'] is not None, 60)
@@ -322,7 +322,7 @@ def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, m
     path.write_text(yaml.safe_dump(data))
     monkeypatch.setattr(Launcher, 'STANDBY_AFTER_S', 0.0)
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
-    launcher = Launcher(load_graph(path), output=log)
+    launcher = Launcher(load_graph(path), output=log, grace_s=STOP_GRACE_S)
     reader = dds.RawReader('/gaze/state', 'active_vision_msgs/msg/GazeState',
                            dds.QoS(reliable=False))
     spares = []

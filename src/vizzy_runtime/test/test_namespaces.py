@@ -23,7 +23,7 @@ from vizzy_runtime.ros import (
     message,
     qos_profile_sensor_data,
 )
-from vizzy_runtime.testing import publish_until, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, publish_until, wait_until
 
 pytestmark = pytest.mark.live
 
@@ -170,7 +170,7 @@ class Probe(Node):
 def test_two_heads_in_two_namespaces_do_not_cross_talk(context, tmp_path) -> None:
     logs = {ns: io.StringIO() for ns in HEADS}
     launchers = {ns: Launcher(load_graph(_head_graph(tmp_path, ns)), namespace=ns,
-                              output=logs[ns]) for ns in HEADS}
+                              output=logs[ns], grace_s=STOP_GRACE_S) for ns in HEADS}
     probe = Probe(context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(probe)
@@ -218,4 +218,4 @@ def test_two_heads_in_two_namespaces_do_not_cross_talk(context, tmp_path) -> Non
         executor.remove_node(probe)
         probe.destroy_node()
     assert all(code == 0 for c in codes.values() for code in c.values()), (
-        codes, {ns: logs[ns].getvalue()[-2500:] for ns in HEADS})
+        codes, {ns: logs[ns].getvalue()[-8000:] for ns in HEADS})

@@ -297,6 +297,9 @@ def test_main_for_runs_the_standard_main(monkeypatch):
         def init(self, args: Any = None) -> None:
             events.append(('init', args))
 
+        def get_global_executor(self) -> None:
+            events.append('executor')
+
         def spin(self, node: Any) -> None:
             events.append('spin')
             raise KeyboardInterrupt
@@ -313,7 +316,8 @@ def test_main_for_runs_the_standard_main(monkeypatch):
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     main = node_tools.main_for(FakeNode)
     main(['x'])
-    assert events == [('init', ['x']), 'spin', 'destroy', 'shutdown']
+    # the executor exists before the node's start-up (a signal there must not break it)
+    assert events == [('init', ['x']), 'executor', 'spin', 'destroy', 'shutdown']
 
     events.clear()
 
@@ -323,7 +327,7 @@ def test_main_for_runs_the_standard_main(monkeypatch):
     try:
         with pytest.raises(ValueError):
             node_tools.main_for(failing_factory)()
-        assert events == ['exec', ('init', None), 'shutdown']
+        assert events == ['exec', ('init', None), 'executor', 'shutdown']
     finally:
         for sig, handler in handlers.items():
             signal.signal(sig, handler)
