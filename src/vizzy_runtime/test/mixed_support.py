@@ -19,12 +19,11 @@ import yaml
 
 from vizzy_runtime import dds, msgs
 from vizzy_runtime.launcher import default_graph_file
-from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python
+from vizzy_runtime.testing import STOP_GRACE_S, real_rclpy_env, real_rclpy_python
 
-# SIGINT to SIGTERM for nodes still running when a launcher stops them: a node busy in a
-# long computation (the cylinder detector's first cloud) on a loaded 2-core machine needs more
-# than the default 5 s to reach its exit
-GRACE_S = 15.0
+# SIGINT to SIGTERM for nodes still running when a launcher stops them (testing.STOP_GRACE_S: a
+# node busy in a long computation on a loaded 2-core machine needs more than the default 5 s)
+GRACE_S = STOP_GRACE_S
 
 
 def graph_subset(path: Path, names: Iterable[str], use_sim_time: bool | None = None) -> Path:

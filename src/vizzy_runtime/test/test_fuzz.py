@@ -12,6 +12,7 @@ import pytest
 
 from vizzy_runtime.fuzz import Mutator, fuzz_node
 from vizzy_runtime.launcher import default_graph_file, load_graph
+from vizzy_runtime.testing import STOP_GRACE_S
 
 FUZZ_PER_TOPIC = int(os.environ.get('VIZZY_FUZZ_PER_TOPIC', '2000'))
 NODES = [n.name for n in load_graph(default_graph_file()).nodes]
@@ -31,7 +32,7 @@ def test_mutations_are_reproducible_and_varied():
 
 @pytest.mark.parametrize('name', NODES)
 def test_a_node_survives_bad_input_on_every_topic(name, tmp_path):
-    report = fuzz_node(name, FUZZ_PER_TOPIC, seed=1, log_dir=tmp_path)
+    report = fuzz_node(name, FUZZ_PER_TOPIC, seed=1, log_dir=tmp_path, grace_s=STOP_GRACE_S)
     where = f'{name}: {report.as_dict()}\n{report.log_tail}'
     assert report.topics, f'no input topics found: {where}'
     assert all(t.sent == FUZZ_PER_TOPIC for t in report.topics), where

@@ -182,7 +182,8 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
     from mixed_support import graph_subset
     graph_file = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller', 'mot_planner'],
                               use_sim_time=False)
-    proc = subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', str(graph_file)],
+    proc = subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', str(graph_file),
+                             '--grace', str(STOP_GRACE_S)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             preexec_fn=_ignore_sigint)
     pids: list[int] = []

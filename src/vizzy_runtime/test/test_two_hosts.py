@@ -23,6 +23,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import graph_subset  # noqa: E402
 
+from vizzy_runtime.testing import STOP_GRACE_S  # noqa: E402
+
 PROBE = r'''
 import json, sys, time
 from vizzy_runtime import dds
@@ -107,7 +109,8 @@ def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):
     host_a, host_b = two_hosts
     sim = graph_subset(tmp_path / 'a.yaml', ['sim', 'gaze_controller'])
     perception = graph_subset(tmp_path / 'b.yaml', ['foveation'])
-    launch = ['-m', 'vizzy_runtime.cli', 'launch', '--duration', '300']
+    launch = ['-m', 'vizzy_runtime.cli', 'launch', '--duration', '300',
+              '--grace', str(STOP_GRACE_S)]
     # output to files: a pipe nobody reads fills up and blocks the launcher and its nodes
     logs = {name: open(tmp_path / f'{name}.log', 'w+')  # noqa: SIM115 - the launchers' output
             for name in ('a', 'b')}

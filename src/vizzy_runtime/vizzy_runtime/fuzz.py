@@ -356,9 +356,11 @@ class _Diagnostics:
 
 def fuzz_node(name: str, per_topic: int, seed: int, *, graph_file: str | Path | None = None,
               log_dir: Path, pace_every: int = 100, pace_s: float = 0.01,
-              progress: Callable[[str], None] | None = None) -> NodeReport:
+              progress: Callable[[str], None] | None = None, grace_s: float = 5.0) -> NodeReport:
     """Run graph.yaml's node `name` alone and fuzz each of its input topics with per_topic
-    messages; returns what happened. The caller's ROS_DOMAIN_ID must be free of other graphs."""
+    messages; returns what happened. The caller's ROS_DOMAIN_ID must be free of other graphs.
+    A node still running grace_s after SIGINT at the end counts as hung (the launcher's own
+    default, 5 s; tests on a loaded machine give more)."""
     from .launcher import Graph, Launcher, default_graph_file, load_graph
     graph = load_graph(graph_file or default_graph_file())
     spec = next(s for s in graph.nodes if s.name == name)
@@ -366,7 +368,7 @@ def fuzz_node(name: str, per_topic: int, seed: int, *, graph_file: str | Path | 
     report = NodeReport(node=name)
     log_path = log_dir / f'fuzz_{name}.log'
     log = open(log_path, 'w+')  # noqa: SIM115 - the launcher's log, closed below
-    launcher = Launcher(alone, output=log)
+    launcher = Launcher(alone, output=log, grace_s=grace_s)
     diag = _Diagnostics(f'/{name}')
     disc = dds.Discovery()
     ours = dds.participant().guid.bytes

@@ -100,7 +100,6 @@ class TrackerConfig:
     full_frame_period: int = 30
     sweep_fraction: float = 0.05
     birth_share: float = 0.15
-    birth_scales: tuple[float, ...] = (1.0,)
     confirm_hits: int = 2
     max_misses: int = 5
     report_misses: int | None = None
@@ -126,10 +125,6 @@ class TrackerConfig:
             problems.append(f'birth_share must be in [0, 1), got {self.birth_share}')
         if self.full_frame_period < 1:
             problems.append(f'full_frame_period must be >= 1, got {self.full_frame_period}')
-        if (not self.birth_scales or not all(np.isfinite(b) and b >= 1.0 for b in
-                                             self.birth_scales)):
-            problems.append(f'birth_scales must be a non-empty list of scales >= 1, got '
-                            f'{self.birth_scales!r}')
         if not 0.0 < self.sweep_fraction <= 1.0:
             problems.append(f'sweep_fraction must be in (0, 1], got {self.sweep_fraction}')
         if self.confirm_hits < 1 or self.max_misses < 1:
@@ -245,7 +240,6 @@ class MotTracker:
         self._next_id = 1
         self.savings = 0.0            # pixels saved towards the next full frame ('budget')
         self._last_full = 0           # frame index of the last full-frame detection
-        self._births = 0              # budgeted full frames so far (cycles birth_scales)
         self.lost = Tracks()          # recently deleted tracks, still predicted (keep_lost)
         self._lost_age = np.zeros(0, np.int64)
         self.planner.reset()
@@ -356,31 +350,20 @@ class MotTracker:
         credit = cfg.planner.s_max * image_area          # this frame's share ('budget')
         budgeted = cfg.new_tracks == 'budget' and cfg.mode == 'planner'
         due = self.frame_index - self._last_full >= cfg.full_frame_period
-        # A budgeted full frame scans the whole image from the next scale of birth_scales
-        # (1: full resolution); it costs what the detector reads there, paid from the savings.
-        birth_scale = cfg.birth_scales[self._births % len(cfg.birth_scales)]
-        coarse = budgeted and not bootstrap and birth_scale > 1.0
-        birth_region = full_frame_region(size, self.detector.geometry)
-        if coarse:
-            birth_region[0, 4] = birth_scale
-        birth_cost = read_area(birth_region, size, self._read_mode)
         full = (bootstrap or cfg.mode == 'full'
                 or (cfg.new_tracks == 'periodic' and self.frame_index % cfg.full_frame_period == 0)
-                or (budgeted and due and self.savings + credit >= birth_cost))
-        coarse = coarse and full
+                or (budgeted and due and self.savings + credit >= image_area))
         tracks = self._warped(homography)
         if len(tracks):
             x, P = predict(tracks.x, tracks.P, cfg.motion)
             tracks = replace(tracks, x=x, P=P)
         plan_s, iterations = 0.0, 0
-        if full and not coarse:
+        if full:
             regions = full_frame_region(size, self.detector.geometry)
             attended = np.ones(len(tracks), bool)
             det_regions = None
         else:
             track_budget = (1.0 - cfg.birth_share) * credit
-            if coarse:     # the tracks' regions get what the savings leave, up to their share
-                track_budget = min(track_budget, self.savings + credit - birth_cost)
             plan = self.planner.plan(tracks.x, tracks.P, size,
                                      track_budget if budgeted and cfg.planner.area in READ_MODES
                                      else None)
@@ -391,11 +374,6 @@ class MotTracker:
             regions = plan.regions[attended]
             if cfg.new_tracks == 'sweep':
                 regions = np.concatenate([regions, self._sweep_region(size)])
-            if coarse:
-                # Tracks the coarse scan reads at their scale count as attended too.
-                s_lo = self.planner.regions(tracks.x, tracks.P, size)[:, 4]
-                attended = attended | (s_lo >= birth_scale)
-                regions = np.concatenate([regions, birth_region])
             det_regions = regions
         t_det, c_det = time.perf_counter(), time.process_time()
         det = (self.detector.detect(image, det_regions) if det_regions is None or len(det_regions)
@@ -456,20 +434,16 @@ class MotTracker:
         attended_ids = self.tracks.ids[attended] if len(self.tracks) else np.zeros(0, np.int64)
         self.tracks = tracks
         self.lost, self._lost_age = self._remember(lost, lost_age, newly_lost)
-        read = (image_area if full and not coarse
-                else read_area(regions, size, self._read_mode))
+        read = image_area if full else read_area(regions, size, self._read_mode)
         if budgeted and not bootstrap:
             self.savings = min(self.savings + credit - read, image_area)
         if full:
             self._last_full = self.frame_index
-            if budgeted and not bootstrap:
-                self._births += 1
         result = self._result(det, regions, attended_ids, full, detector_s, plan_s, t0,
                               iterations, created, deleted + pruned, read / image_area)
         result.detector_cpu_s = detector_cpu_s
         result.savings = self.savings / image_area
-        result.covered_fraction = (1.0 if full
-                                   else read_area(regions, size) / image_area)
+        result.covered_fraction = 1.0 if full else read_area(regions, size) / image_area
         return result
 
     @property
