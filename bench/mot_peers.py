@@ -3,6 +3,7 @@
 
     .venv/bin/python bench/mot_peers.py [--mot ../shared/data/mot17-mini] [--sim-seeds 0 1]
         [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
+        [--birth-share B] [--report-misses N] [--scale-accel-std A] [--init-scale-velocity-std V]
 
 Peer: ByteTrack (``trackers.ByteTrackTracker``, Roboflow's maintained re-implementation; the
 ``supervision`` package dropped its own ByteTrack in 0.27) fed with OpenCV's HOG people
@@ -67,6 +68,7 @@ except ImportError as exc:                                   # bench dependency 
          'supervision==0.31.2')
 
 from mot_planner_node.core.detector import Detections, HogDetector  # noqa: E402
+from mot_planner_node.core.kalman import MotionModel  # noqa: E402
 from mot_planner_node.core.metrics import MotEvaluator, summarize  # noqa: E402
 from mot_planner_node.core.motchallenge import Sequence, find_sequences, load_sequence  # noqa: E402
 from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
@@ -270,6 +272,12 @@ def main() -> None:
     p.add_argument('--period', type=int, default=DEPLOYED['full_frame_period'])
     p.add_argument('--report-misses', type=int, default=DEPLOYED['report_misses'])
     p.add_argument('--birth-score', type=float, default=DEPLOYED['birth_score'])
+    p.add_argument('--scale-accel-std', type=float, default=DEPLOYED['scale_accel_std'],
+                   help='relative scale acceleration std per frame^2 of the motion model '
+                        '(default: the deployed one)')
+    p.add_argument('--init-scale-velocity-std', type=float,
+                   default=DEPLOYED['init_scale_velocity_std'],
+                   help='relative scale-velocity std of a new track (default: the deployed one)')
     p.add_argument('--quantiles', type=float, nargs='+', default=[0.0, 0.2, 0.4, 0.6, 0.8],
                    help='HOG score quantiles for the ByteTrack threshold grid')
     p.add_argument('--cache', type=Path, default=CACHE)
@@ -277,7 +285,9 @@ def main() -> None:
     cfg = deployed_config(PlannerConfig(k_max=args.k_max, s_max=args.s_max, budget_ms=None,
                                         max_iterations=args.budget_iterations, seed=args.seed),
                           full_frame_period=args.period, birth_share=args.birth_share,
-                          report_misses=args.report_misses, birth_score=args.birth_score)
+                          report_misses=args.report_misses, birth_score=args.birth_score,
+                          init_scale_velocity_std=args.init_scale_velocity_std,
+                          motion=replace(MotionModel(), scale_accel_std=args.scale_accel_std))
     cfg = replace(cfg, planner=replace(cfg.planner, area=args.area))
     t0, c0 = time.perf_counter(), time.process_time()
     out: dict[str, Any] = {'config': {k: str(v) if isinstance(v, Path) else v

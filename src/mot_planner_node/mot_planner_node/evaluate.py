@@ -233,7 +233,10 @@ def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
                          birth_score=args.birth_score, keep_lost=args.keep_lost,
                          report_misses=(None if args.report_misses is None
                                         or args.report_misses < 0 else args.report_misses),
-                         motion=MotionModel(accel_std=args.accel_std), planner=planner)
+                         init_scale_velocity_std=float(
+                             PROTOCOLS[args.protocol]['init_scale_velocity_std']),
+                         motion=MotionModel(accel_std=args.accel_std, scale_accel_std=float(
+                             PROTOCOLS[args.protocol]['scale_accel_std'])), planner=planner)
 
 
 def evaluate(paths: Seq[str | Path], args: argparse.Namespace,
