@@ -12,7 +12,7 @@ and rendered with the eye cameras (640x480, 85.4 deg); no ROS. Each run:
     the metrics of saccade t; then the next fixation by the acquisition function (UCB / PI / EI,
     Eqs. 3.36-3.43) among the reachable cells (|azimuth| <= 80 deg, elevation in [-50, 60] deg,
     the kinematic constraints of Fig. 3.10) whose mean lies above the floor (ego z >= -0.7 m,
-    section 3.4.2), moved into [0.3, 8] m; the gaze IK (vizzy_sim_bridge.core.gaze.solve_fixation)
+    section 3.4.2), moved into [0.3, 8] m; the gaze IK (vizzy_gaze.core.gaze.solve_fixation)
     gives the joints, set directly (no saccade dynamics: the thesis's visual suppression blinds
     the observer during the movement anyway). A cell the IK refuses is excluded, and so is a
     fixated cell that got no observation from its fixation (the eyes sit 0.13 m in front of
@@ -72,6 +72,8 @@ ROOT = Path(__file__).resolve().parents[1]
 for _pkg in ('stereo_ses_node', 'foveation_node', 'vizzy_sim_bridge'):
     sys.path.insert(0, str(ROOT / 'src' / _pkg))
 
+from protocol import cpu_seconds, protocol  # noqa: E402
+
 from stereo_ses_node.core.decision import choose_fixation, reachable_cells  # noqa: E402
 from stereo_ses_node.core.information import (  # noqa: E402
     SearchMetrics,
@@ -81,12 +83,12 @@ from stereo_ses_node.core.information import (  # noqa: E402
 from stereo_ses_node.core.ses import GMM, SensoryEgoSphere  # noqa: E402
 from stereo_ses_node.core.stereo import StereoPipeline  # noqa: E402
 from stereo_ses_node.core.ut import StereoRig  # noqa: E402
-from vizzy_sim_bridge.core.camera import camera_matrix  # noqa: E402
-from vizzy_sim_bridge.core.gaze import GazeError, solve_fixation  # noqa: E402
-from vizzy_sim_bridge.core.kinematics import EGO_HEIGHT, JOINT_NAMES, camera_poses  # noqa: E402
+from vizzy_gaze.core.gaze import GazeError, solve_fixation  # noqa: E402
 from vizzy_sim_bridge.core.model import ROBOT_GROUP, CameraSpec, compile_model  # noqa: E402
 from vizzy_sim_bridge.core.render import CameraRenderer  # noqa: E402
 from vizzy_sim_bridge.core.scenes import build_scene  # noqa: E402
+from vizzy_vision.camera import camera_matrix  # noqa: E402
+from vizzy_vision.kinematics import EGO_HEIGHT, JOINT_NAMES, camera_poses  # noqa: E402
 
 W, H, HFOV = 640, 480, 85.4
 K = camera_matrix(W, H, HFOV)
@@ -285,6 +287,56 @@ def aggregate(runs: list[dict]) -> dict:
     return out
 
 
+THESIS_RUNS = 20
+_STATE: dict = {}      # per process: the worlds per field of view and the stereo pipelines
+
+
+def _init_worker(fovs: list[float]) -> None:
+    cv2.setNumThreads(1)
+    _STATE['worlds'] = {fov: World(0, fov) for fov in fovs}
+    _STATE['pipes'] = {s: StereoPipeline(W, H, s, (200, 200)) for s in ('logpolar', 'cartesian')}
+
+
+def _run_task(task: tuple[Config, int, int]) -> tuple[str, int, dict]:
+    """One run in this process's worlds; its CPU time is stored with it (cpu_s)."""
+    cfg, seed, T = task
+    c0 = time.process_time()
+    out = run(_STATE['worlds'][cfg.hfov], _STATE['pipes'][cfg.sensor], cfg, seed, T)
+    out['seed'] = seed
+    out['cpu_s'] = round(time.process_time() - c0, 2)
+    return cfg.label, seed, out
+
+
+def protocol_of(results: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    st = results['setting']
+    reps = st['repeats']
+    per_run = [r['cpu_s'] for c in results['configs'].values() for r in c['runs'] if 'cpu_s' in r]
+    low = sorted({n for n in reps.values()}) if isinstance(reps, dict) else [reps]
+    differs = [
+        'rendering is deterministic: runs differ only by the cell-sampling seed (thesis: '
+        'non-deterministic Gazebo runs)',
+        "the simulator's visual_search scene: the target at 69 deg azimuth, outside the initial "
+        'view (thesis: its own Gazebo scene)',
+        "85.4 deg cameras stand for the thesis's 90 deg; 135 deg as a wider pinhole on the same "
+        '640x480 images',
+        'rewards of fixated cells are the true ray distances (Eq. 3.38 estimates are stored too)',
+        "the 'target' bias is centred on this scene's target direction",
+    ]
+    if low[0] < THESIS_RUNS:
+        differs.insert(0, f'{"-".join(str(n) for n in (low[0], low[-1]) if n)} runs per '
+                          f'configuration instead of {THESIS_RUNS}')
+    return protocol(
+        data=f"simulator scene {st['scene']} (MuJoCo renders {st['image'][0]}x{st['image'][1]},"
+             f" HFOV {', '.join(f'{f:g}' for f in st['hfov_deg'])} deg), T = {st['T']} saccades,"
+             f" N_x = {st['n_cells']}",
+        repetitions=reps, thesis_repetitions=THESIS_RUNS,
+        models='none learned (SGBM stereo, Unscented Transform, sensory ego-sphere)',
+        differs_from_thesis=differs, cpu_s=cpu_s,
+        cpu_s_per_run_median=round(float(np.median(per_run)), 1) if per_run else None,
+        runs_with_cpu_s=len(per_run))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--repeats', type=int, default=1)
@@ -297,12 +349,20 @@ def main() -> None:
     ap.add_argument('--tag', default='', help='suffix of the output files')
     ap.add_argument('--fov', type=float, nargs='+', default=[HFOV],
                     help='horizontal fields of view [deg] of the eye cameras (Fig. 3.11)')
+    ap.add_argument('--jobs', type=int, default=1,
+                    help='worker processes, one run (configuration, seed) at a time each')
+    ap.add_argument('--plot-only', action='store_true',
+                    help='re-plot active_search[_TAG].json without running anything')
     args = ap.parse_args()
+    tag = f'_{args.tag}' if args.tag else ''
+    path = args.out / f'active_search{tag}.json'
+    if args.plot_only:
+        plot(json.loads(path.read_text()), args.out, tag)
+        return
     cv2.setNumThreads(1)
     t0 = time.time()
-    worlds = {fov: World(0, fov) for fov in args.fov}
-    world = worlds[args.fov[0]]
-    pipes = {s: StereoPipeline(W, H, s, (200, 200)) for s in ('logpolar', 'cartesian')}
+    _init_worker(args.fov)
+    world = _STATE['worlds'][args.fov[0]]
     cfgs = configs(args.only, args.fov)
     results: dict = {'setting': {
         'scene': 'visual_search seed 0', 'T': args.T, 'n_cells': 20000, 'repeats': args.repeats,
@@ -312,13 +372,26 @@ def main() -> None:
         'nearest_point_ego_m': np.round(world.nearest, 4).tolist(),
         'nearest_distance_m': round(world.nearest_distance, 4)},
         'thesis': THESIS, 'configs': {}}
-    bar = tqdm(total=len(cfgs) * args.repeats, desc='active search runs')
-    earlier = [json.loads(p.read_text())['configs'] for p in args.merge]
-    for cfg in cfgs:
-        runs = []
-        for seed in range(args.first_seed, args.first_seed + args.repeats):
-            runs.append(run(worlds[cfg.hfov], pipes[cfg.sensor], cfg, seed, args.T))
+    seeds = range(args.first_seed, args.first_seed + args.repeats)
+    tasks = [(cfg, seed, args.T) for cfg in cfgs for seed in seeds]
+    done: dict[str, dict[int, dict]] = {cfg.label: {} for cfg in cfgs}
+    bar = tqdm(total=len(tasks), desc='active search runs')
+    if args.jobs > 1:
+        from multiprocessing import Pool
+        with Pool(args.jobs, initializer=_init_worker, initargs=(args.fov,)) as pool:
+            for label, seed, out in pool.imap_unordered(_run_task, tasks):
+                done[label][seed] = out
+                bar.update(1)
+    else:
+        for task in tasks:
+            label, seed, out = _run_task(task)
+            done[label][seed] = out
             bar.update(1)
+    bar.close()
+    earlier_files = [json.loads(p.read_text()) for p in args.merge]
+    earlier = [e['configs'] for e in earlier_files]
+    for cfg in cfgs:
+        runs = [done[cfg.label][seed] for seed in seeds]
         for old in earlier:       # pool the runs of earlier invocations (other seeds)
             runs += old.get(cfg.label, {}).get('runs', [])
         agg = aggregate(runs)
@@ -328,74 +401,153 @@ def main() -> None:
                                          'runs': runs}
         tqdm.write(f'{cfg.label}: {agg["summary"]}; gap >= 0.9 at {agg["first_gap_0.9"]}, '
                    f'on target at {agg["first_on_target"]}')
-    bar.close()
     for old in earlier:       # configurations run only by earlier invocations are kept
         for label, c in old.items():
             results['configs'].setdefault(label, c)
     results['setting']['repeats'] = {k: len(c['runs']) for k, c in results['configs'].items()}
+    for e in earlier_files:   # the fields of view and invocations of the pooled files
+        results['setting']['hfov_deg'] = sorted(set(results['setting']['hfov_deg'])
+                                                | set(e['setting'].get('hfov_deg', [HFOV])))
+    results['setting']['history'] = [h for e in earlier_files
+                                     for h in e['setting'].get('history', [])] + [
+        'active_search.py ' + ' '.join(sys.argv[1:])]
     results['seconds'] = round(time.time() - t0, 1)
+    earlier_cpu = [e.get('protocol', {}).get('cpu_s') for e in earlier_files]
+    cpu = cpu_seconds() + sum(c for c in earlier_cpu if c is not None)
+    results['protocol'] = protocol_of(results, cpu)
+    if any(c is None for c in earlier_cpu):
+        results['protocol']['cpu_s_note'] = 'excludes merged files that recorded no CPU time'
     args.out.mkdir(parents=True, exist_ok=True)
-    tag = f'_{args.tag}' if args.tag else ''
-    path = args.out / f'active_search{tag}.json'
     path.write_text(json.dumps(results, indent=1) + '\n')
     plot(results, args.out, tag)
     print(json.dumps({label: {**c['summary'], 'first_gap_0.9_mean': c['first_gap_0.9_mean']}
                       for label, c in results['configs'].items()}))
 
 
-def color(cfg: dict) -> str:
-    wide = cfg.get('hfov_deg', HFOV) != HFOV
-    if cfg['sensor'] == 'logpolar':
-        return 'lightskyblue' if wide else 'C0'
-    return 'navajowhite' if wide else 'C1'
+ACQ_ORDER = ('UCB a=0', 'UCB a=0.01', 'UCB a=1', 'UCB a=100', 'UCB a=inf', 'PI', 'EI')
+ACQ_TICKS = ('UCB\nα=0', 'UCB\nα=0.01', 'UCB\nα=1', 'UCB\nα=100', 'UCB\nα=∞', 'PI', 'EI')
+SERIES_COLOURS = {('logpolar', HFOV): 'C0', ('cartesian', HFOV): 'C1',
+                  ('logpolar', 135.0): 'lightskyblue', ('cartesian', 135.0): 'navajowhite'}
+BIAS_COLOURS = {'unbiased': 'C0', 'top': 'C2', 'down': 'C4', 'target': 'C3'}
+METRICS = (('G/S', 'gap', 'G/S: mean gap reduction\n(fraction of the optimum, 0-1)',
+            'gap reduction g_t (0-1)'),
+           ('R/S', 'regret', 'R/S: regret R_t averaged over t [m]',
+            'regret R_t [m] (optimum - mean reward of 1..t)'),
+           ('GI/S', 'GI', 'GI/S: mean global information\n[nats, -log|Σ|, Σ in m²]',
+            'global information GI_t [nats]'),
+           ('LI/S', 'LI', "LI/S: mean local information\nof the target's cells [nats]",
+            'local information LI_t [nats]'))
+
+
+def acq_name(cfg: dict) -> str:
+    if cfg['acquisition'] == 'ucb':
+        a = cfg['alpha']
+        return f"UCB a={'inf' if a == 'inf' else f'{float(a):g}'}"
+    return cfg['acquisition'].upper()
+
+
+def _quartiles(values: list[float]) -> tuple[float, float, float]:
+    q25, med, q75 = np.nanpercentile(np.asarray(values, float), [25, 50, 75])
+    return float(med), float(med - q25), float(q75 - med)
 
 
 def plot(results: dict, out: Path, tag: str) -> None:
+    """Figs. 3.11 and 3.12: top row the per-run summaries (bar: median over runs, error bar:
+    quartiles), bottom row the per-saccade curves (line: median over runs, band: quartiles)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
     cfgs = results['configs']
-    fig311 = {k: v for k, v in cfgs.items() if v['bias'] == 'unbiased'}
-    fig312 = {k: v for k, v in cfgs.items()
-              if v['sensor'] == 'logpolar' and v['acquisition'] == 'ucb' and v['alpha'] == 100.0
-              and v.get('hfov_deg', HFOV) == HFOV}
-    metrics = (('G/S', 'gap', 'gap reduction g_t'), ('R/S', 'regret', 'cumulative regret R_t [m]'),
-               ('GI/S', 'GI', 'global information GI_t'), ('LI/S', 'LI', 'local information LI_t'))
-    for name, group in (('fig311', fig311), ('fig312', fig312)):
+    T = results['setting']['T']
+    for name in ('fig311', 'fig312'):
+        if name == 'fig311':
+            group = {k: v for k, v in cfgs.items() if v['bias'] == 'unbiased'}
+            series = sorted({(v['sensor'], float(v.get('hfov_deg', HFOV))) for v in group.values()},
+                            key=lambda s: (s[1], s[0] != 'logpolar'))
+            cats = [a for a in ACQ_ORDER if any(acq_name(v) == a for v in group.values())]
+            ticks = [ACQ_TICKS[ACQ_ORDER.index(a)] for a in cats]
+
+            def key(v: dict, series: list = series, cats: list = cats) -> tuple[int, int]:
+                return (series.index((v['sensor'], float(v.get('hfov_deg', HFOV)))),
+                        cats.index(acq_name(v)))
+
+            def colour(si: int, series: list = series) -> str:
+                return SERIES_COLOURS.get(series[si], 'grey')
+
+            def series_label(si: int, series: list = series) -> str:
+                s, f = series[si]
+                return f"{'log-polar' if s == 'logpolar' else 'Cartesian'}, {f:g} deg FOV"
+            curve_of = {k: v for k, v in group.items() if acq_name(v) == 'UCB a=100'}
+            title = ('Fig. 3.11: sensors, fields of view and acquisition functions '
+                     '(unbiased memory)')
+        else:
+            group = {k: v for k, v in cfgs.items()
+                     if v['sensor'] == 'logpolar' and v['acquisition'] == 'ucb'
+                     and v['alpha'] == 100.0 and v.get('hfov_deg', HFOV) == HFOV}
+            series = [('logpolar', HFOV)]
+            cats = [b for b in BIAS_NAMES if any(v['bias'] == b for v in group.values())]
+            ticks = cats
+
+            def key(v: dict, cats: list = cats) -> tuple[int, int]:
+                return 0, cats.index(v['bias'])
+
+            def colour(si: int) -> str:
+                return 'C0'
+
+            def series_label(si: int) -> str:
+                return 'log-polar, 85.4 deg FOV, UCB α=100'
+            curve_of = group
+            title = 'Fig. 3.12: memory biases (Table 3.1; log-polar sensor, UCB α=100)'
         if not group:
             continue
-        fig, axes = plt.subplots(2, 4, figsize=(17, 7.5))
-        labels = list(group)
-        x = np.arange(len(labels))
-        for col, (skey, ckey, title) in enumerate(metrics):
+        n_runs = [len(v['runs']) for v in group.values()]
+        fig, axes = plt.subplots(2, 4, figsize=(18, 8.5))
+        width = 0.8 / len(series)
+        for col, (skey, ckey, ylabel, clabel) in enumerate(METRICS):
             ax = axes[0, col]
-            vals = [group[k]['summary'][skey] for k in labels]
-            colors = [color(group[k]) for k in labels]
-            ax.bar(x, vals, color=colors)
-            ax.set_xticks(x)
-            ax.set_xticklabels([k.replace(' unbiased', '') if name == 'fig311' else
-                                group[k]['bias'] for k in labels], rotation=70, fontsize=7)
-            ax.set_title(skey)
+            for v in group.values():
+                si, ci = key(v)
+                med, lo, hi = _quartiles([r['summary'][skey] for r in v['runs']])
+                c = BIAS_COLOURS[v['bias']] if name == 'fig312' else colour(si)
+                ax.bar(ci + (si - (len(series) - 1) / 2) * width, med, width * 0.95, color=c,
+                       yerr=[[lo], [hi]], capsize=2, error_kw={'lw': 0.8})
+            ax.set_xticks(np.arange(len(cats)))
+            ax.set_xticklabels(ticks, fontsize=9)
+            ax.set_ylabel(ylabel, fontsize=9)
+            ax.axhline(0, color='k', lw=0.5)
+            ax.grid(axis='y', alpha=0.3)
             ax = axes[1, col]
-            for k in labels:
-                if name == 'fig311' and not (group[k]['acquisition'] == 'ucb'
-                                             and group[k]['alpha'] == 100.0):
-                    continue
-                ax.plot(np.arange(1, len(group[k][ckey]) + 1), group[k][ckey],
-                        color=color(group[k]) if name == 'fig311' else None,
-                        label=k if name == 'fig311' else group[k]['bias'])
+            for v in curve_of.values():
+                arr = np.asarray([r[ckey] for r in v['runs']], float)
+                t = np.arange(1, arr.shape[1] + 1)
+                q25, med, q75 = np.nanpercentile(arr, [25, 50, 75], axis=0)
+                si, _ = key(v)
+                c = BIAS_COLOURS[v['bias']] if name == 'fig312' else colour(si)
+                ax.plot(t, med, color=c, lw=1.5)
+                ax.fill_between(t, q25, q75, color=c, alpha=0.2, lw=0)
             ax.set_xlabel('saccade t')
-            ax.set_title(title + (' (UCB alpha 100)' if name == 'fig311' else ''))
-            ax.legend(fontsize=7)
-        fig.suptitle(('Fig. 3.11: sensors and acquisition functions (blue log-polar, orange '
-                      'Cartesian; light: 135 deg FOV), unbiased memory' if name == 'fig311' else
-                      'Fig. 3.12: memory biases (log-polar, UCB alpha 100)')
-                     + f'; T = {results["setting"]["T"]}, '
-                     f'{min(len(group[k]["runs"]) for k in labels)}-'
-                     f'{max(len(group[k]["runs"]) for k in labels)} repeats')
-        fig.tight_layout()
-        fig.savefig(out / f'active_search_{name}{tag}.png', dpi=70)
+            ax.set_ylabel(clabel, fontsize=9)
+            ax.set_xlim(1, T)
+            ax.grid(alpha=0.3)
+        if name == 'fig311':
+            handles = [Patch(color=colour(i), label=series_label(i)) for i in range(len(series))]
+            note = 'bottom row: UCB α=100 only'
+        else:
+            handles = [Patch(color=BIAS_COLOURS[b],
+                             label=b if b == 'unbiased' else f'{b} bias') for b in cats]
+            note = 'log-polar, 85.4 deg FOV'
+        fig.legend(handles=handles, loc='lower center', ncol=len(handles), frameon=False,
+                   fontsize=10)
+        runs_txt = (f'{min(n_runs)}' if min(n_runs) == max(n_runs) else
+                    f'{min(n_runs)}-{max(n_runs)}')
+        fig.suptitle(f'{title}; T = {T} saccades, {runs_txt} runs per '
+                     f'configuration (thesis: {THESIS_RUNS})\ntop: per-run means, bar = median '
+                     f'over runs, error bar = quartiles (25-75%); bottom: median over runs, band '
+                     f'= quartiles; {note}', fontsize=11)
+        fig.tight_layout(rect=(0, 0.05, 1, 1))
+        fig.savefig(out / f'active_search_{name}{tag}.png', dpi=80)
         plt.close(fig)
 
 

@@ -2,7 +2,8 @@
 pre-attention classifier, and the classifier's precision-recall against the fit-quality baseline.
 
 Frames: vizzy_sim_bridge tabletop(seed) scenes never used for training (seeds from
-train_classifier.HELD_OUT_SEED), one random head pose each (cylinder_detector_node.sim_frames:
+train_classifier.HELD_OUT_SEED), one random head pose each
+(cylinder_detector_node.training.sim_frames:
 640x480 RGB + organized cloud, Xtion-like depth noise). Per frame, detect_cylinders runs with the
 packaged classifier and without it (mild Table 4.1 prior, Eq. 4.4 threshold 0.5, one BLAS/torch
 thread); the stage times (segmentation, classification, identification = fitting) are medians
@@ -36,6 +37,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
+from protocol import cpu_seconds, protocol  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1  # noqa: E402
@@ -43,9 +45,34 @@ from cylinder_detector_node.core.classifier import PatchClassifier  # noqa: E402
 from cylinder_detector_node.core.fitting import FitParams  # noqa: E402
 from cylinder_detector_node.core.pipeline import detect_cylinders  # noqa: E402
 from cylinder_detector_node.core.synthetic import axis_angle_deg  # noqa: E402
-from cylinder_detector_node.patch_data import MIN_PURITY, SEGMENT, frame_patches, label_cluster  # noqa: E402
-from cylinder_detector_node.sim_frames import SimRenderer, random_joints  # noqa: E402
-from cylinder_detector_node.train_classifier import HELD_OUT_SEED, average_precision  # noqa: E402
+from cylinder_detector_node.training.patch_data import (  # noqa: E402
+    MIN_PURITY,
+    SEGMENT,
+    frame_patches,
+    label_cluster,
+)
+from cylinder_detector_node.training.sim_frames import SimRenderer, random_joints  # noqa: E402
+from cylinder_detector_node.training.train_classifier import HELD_OUT_SEED, average_precision  # noqa: E402
+
+THESIS_FRAMES = 200
+
+
+def protocol_of(result: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    n = result['frames']
+    return protocol(
+        data=f'{n} held-out simulated tabletop frames (vizzy_sim_bridge tabletop seeds '
+             f'{result["first_seed"]}..{result["first_seed"] + n - 1}, one random head pose each, '
+             '640x480 RGB + organized cloud with Xtion-like depth noise)',
+        repetitions=n, thesis_repetitions=THESIS_FRAMES,
+        models='packaged pre-attention patch CNN (cylinder_detector_node, trained on simulated '
+               'tabletop patches); Hough fitting with the mild Table 4.1 prior',
+        differs_from_thesis=[
+            f'{n} simulated frames instead of 200 real Asus Xtion frames',
+            'the classifier is trained on simulated patches (thesis: SqueezeNet on real ones)',
+            f'stage times are medians of {result["repeats"]} runs per frame on a shared 2-core '
+            f'machine (load average {result.get("load_average_1min")}), wall and CPU time',
+        ], cpu_s=cpu_s)
 
 STAGES = ('segmentation', 'classification', 'identification')
 
@@ -171,6 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         'model': clf.meta,
         'load_average_1min': round(os.getloadavg()[0], 2), 'cpu_count': os.cpu_count(),
     }
+    result['protocol'] = protocol_of(result, cpu_seconds())
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'cylinder_pipeline.json').write_text(json.dumps(result, indent=1))
 

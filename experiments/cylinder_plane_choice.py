@@ -40,6 +40,7 @@ import matplotlib  # noqa: E402
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from protocol import cpu_seconds, protocol  # noqa: E402
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1  # noqa: E402
 from cylinder_detector_node.core.cloudfile import read_cloud  # noqa: E402
@@ -47,6 +48,19 @@ from cylinder_detector_node.core.fitting import FitParams  # noqa: E402
 from cylinder_detector_node.core.pipeline import detect_cylinders  # noqa: E402
 from cylinder_detector_node.core.scene import make_room  # noqa: E402
 from cylinder_detector_node.core.segmentation import SegmentParams  # noqa: E402
+
+
+def protocol_of(result: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    n = next(iter(result['summary'].values()))['scenes']      # rooms, each seen 3 ways
+    return protocol(
+        data=f'{n} synthetic rooms (core.scene.make_room: table, floor clutter, back wall; '
+             'camera 1.1-1.9 m high) and the real PCL capture when present',
+        repetitions=n, thesis_repetitions=None,
+        models='none (tabletop segmentation and Hough fitting, mild Table 4.1 prior)',
+        differs_from_thesis=['no thesis counterpart: a check of the segmentation step the '
+                             'thesis assumes (the table is the dominant plane)'],
+        cpu_s=cpu_s)
 
 REAL = Path('/work/shared/data/pcl/milk_cartoon_all_small_clorox.pcd')
 OUT = Path(__file__).resolve().parent / 'results'
@@ -130,6 +144,7 @@ def main() -> None:
                                'confidence': round(c.confidence, 3)} for c in det.cylinders]}
     OUT.mkdir(exist_ok=True)
     result = {'summary': summary, 'real': real, 'scenes': rows}
+    result['protocol'] = protocol_of(result, cpu_seconds())
     (OUT / 'cylinder_plane_choice.json').write_text(json.dumps(result, indent=1))
     fig, ax = plt.subplots(figsize=(7, 4))
     pitches = sorted({x['pitch_deg'] for x in rows})

@@ -36,6 +36,25 @@ from foveation_node.core.information import (  # noqa: E402
 )
 from foveation_node.core.synthetic import pink_noise, to_uint8, white_noise  # noqa: E402
 
+sys.path.insert(0, str(ROOT / 'experiments'))
+from protocol import cpu_seconds, protocol  # noqa: E402
+
+
+def protocol_of(result: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    st = result['setting']
+    return protocol(
+        data=f"the section 2.3.1 formulas (Eqs. 2.5-2.18) for {st['N']}x{st['N']} images, "
+             f"sigma_1 = {st['sigma_1']}, K = {st['levels']} levels; measured on "
+             f"{st['seeds_per_kind']} white-noise and {st['seeds_per_kind']} 1/f-noise images",
+        repetitions={'formula curve': 1, 'measured images per kind': st['seeds_per_kind']},
+        thesis_repetitions={'formula curve': 1},
+        models='none (analytic)',
+        differs_from_thesis=['the thesis does not state the signal power or the reference of '
+                             'its ratios: here per-pixel power 255^2 and ratios against the '
+                             'unfoveated image analysed with the same equations'],
+        cpu_s=cpu_s)
+
 N = 227
 SIGMA_1 = 1.0
 LEVELS = 5
@@ -178,6 +197,7 @@ def main() -> None:
                            for name, c in by_power.items()},
         'measured': {'f0': measured_f0s.tolist(), **measured},
     }
+    result['protocol'] = protocol_of(result, cpu_seconds())
     (args.out / 'fovea_information.json').write_text(json.dumps(rounded(result), indent=1) + '\n')
     plot(args.out / 'fovea_information.png', f0s, thesis, pyramid, by_size, by_power,
          measured_f0s, measured)

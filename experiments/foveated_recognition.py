@@ -81,6 +81,8 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'foveation_node'))
+from protocol import cpu_seconds, protocol  # noqa: E402
+
 from foveation_node.core.foveation import Foveator  # noqa: E402
 from foveation_node.core.recognition import Classifier, saliency_box, two_pass  # noqa: E402
 
@@ -108,6 +110,57 @@ def iou(a: tuple[int, ...], b: tuple[int, ...]) -> float:
 def rank_of(true: int, ranking: list[int]) -> int:
     """0-based position of the true class in a ranking (len(ranking) if absent)."""
     return ranking.index(true) if true in ranking else len(ranking)
+
+
+THESIS_IMAGES = 50000      # ILSVRC 2012, "a total of 50K test images" (section 2.4.2)
+THESIS_NETWORKS = 'CaffeNet, GoogLeNet, VGGNet (Caffe Model Zoo)'
+
+
+def protocol_views(result: dict, cpu_s: float | None = None) -> dict:
+    """Protocol of foveated_recognition.json (simulated single-object views)."""
+    return protocol(
+        data=f"{result['views']} held-out simulated single-object views ({result['per_class']} "
+             f"per class, {len(result['classes'])} classes), 640x480, off-centre objects",
+        repetitions=result['views'], thesis_repetitions=THESIS_IMAGES,
+        models=f"the packaged foveation CNN ({len(result['classes'])} classes, trained on "
+               'simulated views)',
+        differs_from_thesis=[
+            f"{len(result['classes'])} simulated object classes instead of ILSVRC 2012's 1000 "
+            'photograph classes', f'one small CNN instead of {THESIS_NETWORKS}',
+            'initial fixations on a 4x3 grid plus the centre (thesis: 8x8)'],
+        cpu_s=cpu_s)
+
+
+def protocol_tabletop(res: dict, cpu_s: float | None = None) -> dict:
+    """Protocol of foveated_recognition_tabletop.json (no thesis counterpart)."""
+    return protocol(
+        data=f"{res['views']} left-eye renders of tabletop scenes (seeds {res['seeds'][0]}.."
+             f"{res['seeds'][1]}, {res['poses_per_scene']} head poses each), {res['cases']} "
+             'two-pass cases', repetitions=res['cases'], thesis_repetitions=None,
+        models=f"the packaged foveation CNN ({res['model']})",
+        differs_from_thesis=['no thesis counterpart: recognition in the cluttered scene where '
+                             'the node runs'], cpu_s=cpu_s)
+
+
+def protocol_folder(result: dict, cpu_s: float | None = None) -> dict:
+    """Protocol of a --images run (real photographs, e.g. foveated_recognition_imagenet.json)."""
+    names = ', '.join(n['name'] for n in result['networks'])
+    sp, loc = result['second_pass'], result['localisation']
+    return protocol(
+        data=f"{result['images']} labelled photographs ({result['folder']}), squashed to "
+             f"{result['size_px']} px",
+        repetitions={'error vs f0': result['images'], 'two passes': sp['images'],
+                     'localisation': loc['images']},
+        thesis_repetitions={'error vs f0': THESIS_IMAGES, 'two passes': THESIS_IMAGES,
+                            'localisation': THESIS_IMAGES},
+        models=f'ImageNet classifiers {names} (TorchScript) standing in for {THESIS_NETWORKS}',
+        differs_from_thesis=[
+            f"{result['images']} photographs instead of ILSVRC 2012's 50000",
+            f'networks {names} instead of {THESIS_NETWORKS}',
+            f"second pass on {sp['images']} images with a {sp['grid']} grid of initial "
+            'fixations (thesis: 8x8) and one network',
+            'localisation on collages (the photographs carry no boxes; thesis: ILSVRC boxes)'],
+        cpu_s=cpu_s)
 
 
 def main() -> int:
@@ -145,7 +198,13 @@ def main() -> int:
     folder.add_argument('--jobs', type=int, default=2, help='worker processes (1 thread each)')
     folder.add_argument('--name', default='foveated_recognition_imagenet',
                         help='output stem under --out')
+    parser.add_argument('--plot-only', action='store_true',
+                        help='redraw foveated_recognition[_quick].png from its JSON')
     args = parser.parse_args()
+    if args.plot_only:
+        stem = 'foveated_recognition_quick' if args.quick else 'foveated_recognition'
+        plot(json.loads((args.out / f'{stem}.json').read_text()), args.out / f'{stem}.png')
+        return 0
     if args.images is not None:
         return run_folder(args)
     if args.tabletop:
@@ -154,7 +213,7 @@ def main() -> int:
     import torch
     from tqdm import tqdm
 
-    from foveation_node.core.object_views import CLASSES, ObjectViews
+    from foveation_node.training.object_views import CLASSES, ObjectViews
 
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -256,8 +315,9 @@ def main() -> int:
 
     args.out.mkdir(parents=True, exist_ok=True)
     stem = 'foveated_recognition_quick' if args.quick else 'foveated_recognition'
-    plot(result, f0s, grid, args.out / f'{stem}.png')
+    plot(result, args.out / f'{stem}.png')
     example(clf, views, Foveator(W, H, LEVELS, EXAMPLE_F0), args.out / f'{stem}_example.png')
+    result['protocol'] = protocol_views(result, cpu_seconds())
     (args.out / f'{stem}.json').write_text(json.dumps(rounded(result), indent=1) + '\n')
     if not args.quick:
         run_tabletop(args)
@@ -293,8 +353,8 @@ def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: floa
     """
     from tqdm import tqdm
 
-    from foveation_node.core.object_views import CLASSES
-    from foveation_node.core.tabletop_views import (
+    from foveation_node.training.object_views import CLASSES
+    from foveation_node.training.tabletop_views import (
         DEFAULT_JOINTS,
         TabletopViews,
         object_at,
@@ -365,6 +425,7 @@ def run_tabletop(args: argparse.Namespace) -> int:
         if Path(args.model).resolve().is_relative_to(ROOT) else str(args.model)
     res['seconds'] = round(time.perf_counter() - t0, 1)
     args.out.mkdir(parents=True, exist_ok=True)
+    res['protocol'] = protocol_tabletop(res, cpu_seconds())
     (args.out / 'foveated_recognition_tabletop.json').write_text(
         json.dumps(rounded(res), indent=1) + '\n')
     print(f'tabletop: {res["views"]} views, {res["cases"]} two-pass cases in '
@@ -572,6 +633,7 @@ def run_folder(args: argparse.Namespace) -> int:
     result['wall_s'] = round(wall, 1)
     result['jobs'] = args.jobs
     args.out.mkdir(parents=True, exist_ok=True)
+    result['protocol'] = protocol_folder(result, sum(cpu.values()))
     stem = args.name + ('_quick' if args.quick else '')
     (args.out / f'{stem}.json').write_text(
         json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
@@ -641,6 +703,7 @@ def folder_example(clf: Classifier, items: list, size: int, path: Path,
                 0, 0.6, (255, 255, 255), 2)
     cv2.putText(two, 'pass 2, fovea on the best box', (8, size * scale - 10), 0, 0.6,
                 (255, 255, 255), 2)
+    example_legends(one, two, true_box=False)
     cv2.imwrite(str(path), np.hstack([one, two]))
     print(f'example: {item.path.name}: pass 1 {res.first[0].label} {res.first[0].score:.2f}, '
           f'pass 2 {best.label} {best.score:.2f} -> {path}')
@@ -713,50 +776,89 @@ def rounded(value: object, digits: int = 4) -> object:
     return value
 
 
-def plot(result: dict, f0s: tuple[float, ...], grid: dict[str, np.ndarray], path: Path) -> None:
+def plot(result: dict, path: Path) -> None:
+    """Figs. 2.7a / 2.9 (error vs f0), 2.7b / 2.10a (localisation vs th) and 2.8 (error vs the
+    initial fixation), from the result alone (so --plot-only can redraw it)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 4, figsize=(19, 4.3))
+    fig, ax = plt.subplots(2, 3, figsize=(16, 9.5))
     rows = [r for r in result['by_f0'] if r['f0_px'] != 'unfoveated']
     base = result['by_f0'][-1]
     x = [r['f0_px'] for r in rows]
-    for name, colour in (('centred', 'tab:blue'), ('non_centred', 'tab:red')):
-        for p, style in (('pass1', '--'), ('pass2', '-')):
-            ax[0].plot(x, [r[f'{name}_{p}_top1_error'] for r in rows], style, color=colour,
-                       marker='o', label=f'{name.replace("_", "-")}, {p[:4]} {p[-1]}')
-    ax[0].axhline(base['centred_pass1_top1_error'], color='k', lw=0.8, ls=':',
-                  label='unfoveated (baseline)')
-    ax[0].set(xlabel='f0 [px of 640x480]', ylabel='top-1 error', xscale='log',
-              title='top-1 error vs fovea size (Figs. 2.7a, 2.9)', ylim=(0, 1))
-    ax[0].legend(fontsize=7)
-    for name, colour in (('centred', 'tab:blue'), ('non_centred', 'tab:red')):
-        for p, style in (('pass1', '--'), ('pass2', '-')):
-            ax[1].plot(x, [r[f'{name}_{p}_top5_error'] for r in rows], style, color=colour,
-                       marker='o', label=f'{name.replace("_", "-")}, {p[:4]} {p[-1]}')
-    ax[1].set(xlabel='f0 [px]', ylabel='top-5 error (7 classes)', xscale='log',
-              title='top-5 error vs fovea size', ylim=(0, 0.5))
-    ax[1].legend(fontsize=7)
-    for a in ax[:2]:
+    n_views = result['views']
+    for k, (topk, ylim) in enumerate((('top1', 1.0), ('top5', 0.5))):
+        a = ax[0, k]
+        for name, colour, what in (('centred', 'tab:blue', 'centred fixation'),
+                                   ('non_centred', 'tab:red', 'off-centre fixations')):
+            for pss, style, pname in (('pass1', '--', 'pass 1'), ('pass2', '-', 'pass 2')):
+                a.plot(x, [r[f'{name}_{pss}_{topk}_error'] for r in rows], style, color=colour,
+                       marker='o', label=f'{what}, {pname}')
+        a.axhline(base[f'centred_pass1_{topk}_error'], color='k', lw=1, ls=':',
+                  label='unfoveated image')
+        a.set(xlabel='fovea size f0 [px, in a 640x480 image]', xscale='log', ylim=(0, ylim),
+              ylabel=f'{"top-1" if topk == "top1" else "top-5"} error (fraction of cases)',
+              title=('top-1 error vs fovea size (Figs. 2.7a, 2.9)' if topk == 'top1' else
+                     f'top-5 error vs fovea size ({len(result["classes"])} classes: loose)'))
         a.set_xticks(x, [f'{v:g}' for v in x])
         a.minorticks_off()
-    vmax = max(g.max() for g in grid.values())
-    both = np.hstack([grid['pass1'], np.full((grid['pass1'].shape[0], 1), np.nan), grid['pass2']])
-    im = ax[2].imshow(both, cmap='gray', vmin=0, vmax=vmax)
-    for (r, c), val in np.ndenumerate(both):
-        if np.isfinite(val):
-            ax[2].text(c, r, f'{val:.2f}', ha='center', va='center', color='tab:orange', fontsize=8)
-    ax[2].set(title='top-1 error vs initial fixation\n(grid over the image; pass 1 | pass 2; '
-              'all f0)', xticks=[], yticks=[])
-    fig.colorbar(im, ax=ax[2], fraction=0.03)
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8, title='dashed: pass 1, solid: pass 2', title_fontsize=8,
+                 handlelength=3.5)
     loc = result['localisation_vs_threshold']
-    ax[3].plot(loc['thresholds'], loc['error'], 'k-o', ms=3)
-    ax[3].set(xlabel='threshold th', ylabel='localisation error (IoU < 0.5)',
-              title=f'localisation vs th (f0 = {loc["f0_px"]:g}, centred)', ylim=(0, 1))
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    a = ax[0, 2]
+    a.plot(loc['thresholds'], loc['error'], 'k-o', ms=4, label='centred fixation, pass 1')
+    a.set(xlabel='saliency threshold th',
+          ylabel='localisation error (no top-5 box with IoU >= 0.5)',
+          title=f'localisation vs th (Figs. 2.7b, 2.10a; f0 = {loc["f0_px"]:g} px)', ylim=(0, 1))
+    a.grid(alpha=0.3)
+    a.legend(fontsize=8)
+    grid = {k: np.asarray(v, float) for k, v in result['grid_top1_error'].items()}
+    fx = sorted({p[0] for p in result['fixations_px'][1:]})
+    fy = sorted({p[1] for p in result['fixations_px'][1:]})
+    w, h = result['image']
+    vmax = max(float(g.max()) for g in grid.values())
+    for k, (pss, title) in enumerate((('pass1', 'pass 1'), ('pass2', 'pass 2'))):
+        a = ax[1, k]
+        g = grid[pss]
+        im = a.imshow(g, cmap='viridis', vmin=0, vmax=vmax, extent=(0, w, h, 0))
+        for (r, c), val in np.ndenumerate(g):
+            a.text((c + 0.5) * w / g.shape[1], (r + 0.5) * h / g.shape[0], f'{val:.2f}',
+                   ha='center', va='center', fontsize=11,
+                   color='white' if val < 0.6 * vmax else 'black')
+        a.set_xticks(fx)
+        a.set_yticks(fy)
+        a.set(xlabel='initial fixation x [px]', ylabel='initial fixation y [px]',
+              title=f'top-1 error vs initial fixation, {title} (Fig. 2.8; mean over f0)')
+    fig.colorbar(im, ax=ax[1, 1], label='top-1 error (fraction of views)', fraction=0.035)
+    a = ax[1, 2]
+    dist = result['by_distance_top1']
+    mid = [0.5 * (d['distance_px'][0] + d['distance_px'][1]) for d in dist]
+    a.plot(mid, [d['pass1_top1_error'] for d in dist], '--o', color='tab:red', label='pass 1')
+    a.plot(mid, [d['pass2_top1_error'] for d in dist], '-o', color='tab:red', label='pass 2')
+    a.set(xlabel='distance from the initial fixation to the object [px]',
+          ylabel='top-1 error (fraction of cases)', ylim=(0, 1),
+          title='top-1 error vs fixation-object distance')
+    a.grid(alpha=0.3)
+    a.legend(fontsize=8)
+    fig.suptitle(f'Foveated recognition on {n_views} simulated views '
+                 f'({result["per_class"]} per class, {len(result["classes"])} classes), '
+                 'first vs second pass', fontsize=12)
+    fig.tight_layout(rect=(0, 0, 0.97, 0.97))
+    fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def example_legends(one: np.ndarray, two: np.ndarray, true_box: bool) -> None:
+    """The key of the Fig. 2.5 example's colours, in the nodes' overlay style (BGR)."""
+    from vizzy_runtime.overlay import draw_legend
+
+    draw_legend(one, [((0, 0, 255), 'pass 1: top-5 saliency boxes (label, score)'),
+                      ((255, 255, 255), 'fovea (radius f0) at the first fixation')])
+    draw_legend(two, [((0, 255, 0), 'pass 2: best box (label, score)')]
+                + ([((255, 255, 0), 'true object box')] if true_box else [])
+                + [((255, 255, 255), 'fovea (radius f0) on the best box')])
 
 
 def example(clf: Classifier, views: list, foveator: Foveator, path: Path) -> None:
@@ -789,6 +891,7 @@ def example(clf: Classifier, views: list, foveator: Foveator, path: Path) -> Non
     cv2.putText(one, f'pass 1 at the centre (true: {clf.labels[view.label]})', (8, H - 10), 0,
                 0.6, (255, 255, 255), 2)
     cv2.putText(two, 'pass 2, fovea on the best box', (8, H - 10), 0, 0.6, (255, 255, 255), 2)
+    example_legends(one, two, true_box=True)
     cv2.imwrite(str(path), np.hstack([one, two]))
 
 

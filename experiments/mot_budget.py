@@ -48,6 +48,8 @@ import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from protocol import cpu_seconds  # noqa: E402
+from protocol import protocol as make_protocol  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from mot_planner_node.core.detector import Detections, HogDetector  # noqa: E402
@@ -62,6 +64,34 @@ RESULTS = Path(__file__).resolve().parent / 'results'
 CACHE = Path(__file__).resolve().parent / 'cache'
 THESIS = {'dataset': 'TUD-Stadtmitte, 640x480, 179 frames', 'detector_s_at_smax_0.1': 0.02,
           'full_frame_detector_s': 0.24, 'speedup_at_smax_0.1': 12.0}
+THESIS_TRIALS = 100
+THESIS_S_MAX = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0]
+
+
+def protocol_of(summary: dict, cpu_s: float | None = None, new_tracks: str | None = None,
+                area: str | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields (new_tracks and
+    area are stored in results written since issue 16; pass them for older files)."""
+    new_tracks = new_tracks or summary.get('new_tracks')
+    area = area or summary.get('area')
+    s_values = sorted({r['s_max'] for r in summary['grid']})
+    differs = [f"{summary['trials']} trials per (K_max, S_max) instead of {THESIS_TRIALS}",
+               f"{summary['frames']} frames of {len(summary['sequences'])} sequence(s) "
+               f"({', '.join(summary['sequences'])}) instead of TUD-Stadtmitte's 179"]
+    if s_values != THESIS_S_MAX:
+        differs.append(f'S_max in {s_values} instead of 0.1..1.0 in steps of 0.1')
+    if summary['name'] == 'synthetic':
+        differs.append('tracking on the simulated detector; only the detector time is HOG run '
+                       "on each frame's regions")
+    if new_tracks not in (None, 'none'):
+        differs.append(f"new tracks '{new_tracks}' (thesis: only from the first frame)")
+    if area not in (None, 'centres'):
+        differs.append(f"S_max counts '{area}' (thesis reading: 'centres')")
+    return make_protocol(
+        data=f"{summary['name']}: {', '.join(summary['sequences'])}, {summary['frames']} frames",
+        repetitions=summary['trials'], thesis_repetitions=THESIS_TRIALS,
+        models='OpenCV HOG people detector (default SVM); MCTS planner',
+        differs_from_thesis=differs, cpu_s=cpu_s, new_tracks=new_tracks, s_max_reading=area)
 
 
 class SharedFullFrames:
@@ -145,11 +175,11 @@ def render_sim_sequence(root: Path, seed: int, people: int, frames: int, fps: fl
     import cv2
     import mujoco
 
-    from vizzy_sim_bridge.core.camera import EYE_HFOV_DEG, camera_matrix, project
-    from vizzy_sim_bridge.core.kinematics import CAMERA_FRAMES, JOINT_NAMES, frames_in_base
     from vizzy_sim_bridge.core.model import EYE_CAMERA, compile_model
     from vizzy_sim_bridge.core.render import CameraRenderer
     from vizzy_sim_bridge.core.scenes import build_scene
+    from vizzy_vision.camera import EYE_HFOV_DEG, camera_matrix, project
+    from vizzy_vision.kinematics import CAMERA_FRAMES, JOINT_NAMES, frames_in_base
 
     params = {'scene': 'pedestrians', 'seed': seed, 'people': people, 'frames': frames,
               'fps': fps, 'start_s': start_s, 'camera': 'left, head at rest'}
@@ -328,7 +358,10 @@ def main() -> None:
     summary = {'name': name, 'sequences': result['sequences'], 'frames': result['frames'],
                'trials': args.trials, 'budget_ms': args.budget_ms,
                'baseline': result['baseline'], 'grid': rows, 'thesis': THESIS,
-               'runs': result['cells']}
+               'runs': result['cells'],
+               'new_tracks': None if args.synthetic else args.new_tracks,
+               'area': None if args.synthetic else area}
+    summary['protocol'] = protocol_of(summary, cpu_seconds())
     out.write_text(json.dumps(summary, indent=1, default=float) + '\n')
     at = [r for r in rows if abs(r['s_max'] - 0.1) < 1e-9]
     for r in at:

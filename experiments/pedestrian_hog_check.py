@@ -58,7 +58,24 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'src' / 'vizzy_sim_bridge'))
+from protocol import cpu_seconds, protocol  # noqa: E402
+
 from vizzy_sim_bridge.core.pedestrians import PedestrianCrowd, preview_scene_xml  # noqa: E402
+
+
+def protocol_of(result: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    seeds, frames = result['seeds'], result['frames']
+    return protocol(
+        data=f"the simulator's walking people ({result['scene']} scene, "
+             f"{result['people_per_scene']} per scene, seeds {seeds[0]}..{seeds[-1]}), "
+             f'{frames} frames in all, MuJoCo renders 640x480',
+        repetitions=len(seeds), thesis_repetitions=None,
+        models=result['detector'],
+        differs_from_thesis=["no thesis counterpart: checks that the thesis's detector "
+                             "(OpenCV HOG) fires on the simulator's people before Fig. 5.3 "
+                             'is run on them'],
+        cpu_s=cpu_s)
 
 HIDDEN_GROUP = 5
 
@@ -230,6 +247,11 @@ def main() -> int:
                                 0.45, (0, 0, 255), 1, cv2.LINE_AA)
                 cv2.putText(bgr, f'seed {seed} t={t:.2f}s', (6, args.height - 8),
                             cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+                if not montage:           # the key, once, on the first tile (BGR colours)
+                    from vizzy_runtime.overlay import draw_legend
+                    draw_legend(bgr, [((0, 200, 0), 'person counted for recall (HOG-shaped box)'),
+                                      ((0, 220, 220), 'other person (small, occluded, cut)'),
+                                      ((0, 0, 255), 'HOG detection (SVM score)')])
                 montage.append(bgr)
         per_seed[str(seed)] = {**seed_stats,
                                'recall': seed_stats['hit50'] / max(1, seed_stats['counted']),
@@ -271,6 +293,7 @@ def main() -> int:
         if args.width > 480:  # keep the picture small enough for the repository
             sheet = cv2.resize(sheet, None, fx=0.75, fy=0.75, interpolation=cv2.INTER_AREA)
         cv2.imwrite(str(png), sheet, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    result['protocol'] = protocol_of(result, cpu_seconds())
     js.write_text(json.dumps(result, indent=2) + '\n')
     if misses:
         while len(misses) % 12:

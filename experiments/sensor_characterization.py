@@ -42,7 +42,8 @@ ROOT = Path(__file__).resolve().parents[1]
 for _pkg in ('stereo_ses_node', 'foveation_node'):
     sys.path.insert(0, str(ROOT / 'src' / _pkg))
 
-from foveation_node.core.logpolar import LogPolarRetina  # noqa: E402
+from protocol import cpu_seconds, protocol  # noqa: E402
+
 from stereo_ses_node.core.geometry import pixel_rays, project, vergence_poses  # noqa: E402
 from stereo_ses_node.core.information import information  # noqa: E402
 from stereo_ses_node.core.multires import disparity_window  # noqa: E402
@@ -50,6 +51,21 @@ from stereo_ses_node.core.sensors import RFSensor, cartesian_sensor, logpolar_se
 from stereo_ses_node.core.stereo import StereoPipeline  # noqa: E402
 from stereo_ses_node.core.synthetic import plane_texture, render_plane  # noqa: E402
 from stereo_ses_node.core.ut import SigmaPointTable, StereoRig, UTParams  # noqa: E402
+from vizzy_vision.logpolar import LogPolarRetina  # noqa: E402
+
+
+def protocol_of(result: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    return protocol(
+        data=f"a fronto-parallel plane at {len(result['depths_m'])} distances x "
+             f"{len(result['vergences_deg'])} vergences, Vizzy eye camera "
+             f"{result['setting']['image'][0]}x{result['setting']['image'][1]}; plus a rendered "
+             'textured-plane check through the whole stereo pipeline',
+        repetitions=1, thesis_repetitions=1,
+        models='none (geometry: receptive fields + Unscented Transform)',
+        differs_from_thesis=['the robot camera (640x480, 85.4 deg, baseline 0.204 m) and '
+                             '200x200 receptive fields; the thesis does not give its grid'],
+        cpu_s=cpu_s)
 
 W, H = 640, 480
 F = 320.0 / np.tan(np.radians(85.4 / 2))
@@ -153,6 +169,7 @@ def main() -> None:
     result['rendered_check'] = rendered_check([0.5, 1.0, 1.5], args.quick)
     result['seconds'] = round(time.time() - t0, 1)
     args.out.mkdir(parents=True, exist_ok=True)
+    result['protocol'] = protocol_of(result, cpu_seconds())
     suffix = '_quick' if args.quick else ''
     (args.out / f'sensor_characterization{suffix}.json').write_text(
         json.dumps(result, indent=1, allow_nan=True) + '\n')
