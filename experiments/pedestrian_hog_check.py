@@ -35,6 +35,22 @@ import sys
 import time
 from pathlib import Path
 
+KEY = [((0, 200, 0), 'person counted for recall (HOG-shaped box)'),
+       ((0, 220, 220), 'other person (small, occluded or cut off)'),
+       ((0, 0, 255), 'HOG detection (number: SVM score)')]
+
+
+def colour_key(width: int) -> np.ndarray:
+    """A band under the montage naming each box colour (BGR), readable at the montage's size."""
+    band = np.full((44, width, 3), 255, np.uint8)
+    x = 12
+    for colour, text in KEY:
+        cv2.rectangle(band, (x, 12), (x + 28, 32), colour, 3)
+        cv2.putText(band, text, (x + 38, 29), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+        x += 38 + cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.6, 1)[0][0] + 30
+    return band
+
 
 def choose_gl() -> None:
     """MUJOCO_GL as given, else EGL if an EGL context can be made, else OSMesa."""
@@ -247,11 +263,6 @@ def main() -> int:
                                 0.45, (0, 0, 255), 1, cv2.LINE_AA)
                 cv2.putText(bgr, f'seed {seed} t={t:.2f}s', (6, args.height - 8),
                             cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
-                if not montage:           # the key, once, on the first tile (BGR colours)
-                    from vizzy_runtime.overlay import draw_legend
-                    draw_legend(bgr, [((0, 200, 0), 'person counted for recall (HOG-shaped box)'),
-                                      ((0, 220, 220), 'other person (small, occluded, cut)'),
-                                      ((0, 0, 255), 'HOG detection (SVM score)')])
                 montage.append(bgr)
         per_seed[str(seed)] = {**seed_stats,
                                'recall': seed_stats['hit50'] / max(1, seed_stats['counted']),
@@ -292,6 +303,7 @@ def main() -> int:
         sheet = np.vstack(rows)
         if args.width > 480:  # keep the picture small enough for the repository
             sheet = cv2.resize(sheet, None, fx=0.75, fy=0.75, interpolation=cv2.INTER_AREA)
+        sheet = np.vstack([sheet, colour_key(sheet.shape[1])])
         cv2.imwrite(str(png), sheet, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     result['protocol'] = protocol_of(result, cpu_seconds())
     js.write_text(json.dumps(result, indent=2) + '\n')
