@@ -1,4 +1,5 @@
-/* LD_PRELOAD shim: a bind() to the wildcard address (0.0.0.0 or ::) binds loopback instead.
+/* LD_PRELOAD shim: a bind() to the wildcard address (INADDR_ANY or in6addr_any) binds loopback
+ * instead.
  *
  * Why: Cyclone DDS binds its receive sockets to INADDR_ANY whatever its configuration
  * (ddsi_udp_create_conn, bind_to_any for RECV_UC/RECV_MC), so a node sending only on 127.0.0.1

@@ -41,7 +41,7 @@ print(json.dumps(sorted({addr for _, addr, _ in bound_addresses(os.getpid())})))
 '''
 
 
-ANY_V4 = '0.0.0.0'   # the wildcard, bound only inside a private namespace (ISOLATED)
+ANY_V4 = loopback.WILDCARD_V4   # bound only inside a private namespace (ISOLATED)
 # A private network namespace with only lo, up: what runs there reaches no other host.
 ISOLATED = ['unshare', '--net', 'sh', '-c', 'ip link set lo up && exec "$0" "$@"']
 
@@ -120,3 +120,8 @@ def test_children_get_the_shim_only_when_wanted() -> None:
     assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'bundled',
                                                      'VIZZY_DDS_LAN': '1'})
     assert 'LD_PRELOAD' not in loopback.preload_env({'VIZZY_RUNTIME': 'ros'})
+
+
+def test_servers_listen_on_loopback_unless_the_lan_is_opted_in() -> None:
+    assert loopback.default_bind_host({}) == loopback.LOOPBACK_V4 == '127.0.0.1'
+    assert loopback.default_bind_host({'VIZZY_DDS_LAN': '1'}) == loopback.WILDCARD_V4

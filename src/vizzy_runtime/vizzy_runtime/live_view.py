@@ -37,10 +37,6 @@ DEFAULT_PORT = 8765
 DEPTH = 4
 
 
-def default_host() -> str:
-    return '0.0.0.0' if loopback.lan_mode() else '127.0.0.1'
-
-
 def _hidden(topic: str) -> bool:
     return any(part.startswith('_') for part in topic.split('/'))
 
@@ -54,7 +50,7 @@ class LiveView:
 
     def __init__(self, host: str | None = None, port: int = DEFAULT_PORT, *, name: str = 'vizzy',
                  discovery_interval: float = 0.5) -> None:
-        self.host = default_host() if host is None else host
+        self.host = loopback.default_bind_host() if host is None else host
         self.requested_port = port
         self.name = name
         self.discovery_interval = discovery_interval
@@ -94,7 +90,8 @@ class LiveView:
 
     @property
     def url(self) -> str:
-        host = '127.0.0.1' if self.host in ('0.0.0.0', '') else self.host
+        # a server on every interface is reached here through loopback
+        host = loopback.LOOPBACK_V4 if self.host in (loopback.WILDCARD_V4, '') else self.host
         return f'ws://{host}:{self.port}'
 
     def stop(self) -> None:

@@ -1,7 +1,8 @@
 """Keep the bundled runtime's receive sockets on 127.0.0.1 (the networking default).
 
-Cyclone DDS sends only where loopback_config() says (127.0.0.1), but binds its receive sockets to
-0.0.0.0 whatever the configuration, which would leave a node's ports reachable from the LAN. The
+Cyclone DDS sends only where loopback_config() says (LOOPBACK_V4), but binds its receive sockets
+to the wildcard address whatever the configuration, which would leave a node's ports reachable
+from the LAN. The
 cure is an LD_PRELOAD shim (csrc/loopback_bind.c, built with the package as
 `vizzy_runtime/_loopback_bind*.so`) that turns a bind to the wildcard address into a bind to
 loopback. LD_PRELOAD only acts when a process starts, so:
@@ -26,6 +27,11 @@ import sys
 from collections.abc import Mapping, MutableMapping
 from pathlib import Path
 
+# The one place the project names these addresses: everything binds and sends on LOOPBACK_V4;
+# only the LAN opt-in binds the wildcard (default_bind_host).
+LOOPBACK_V4 = '127.0.0.1'
+WILDCARD_V4 = '0.0.0.0'
+
 SHIM_MODULE = 'vizzy_runtime._loopback_bind'
 # Set in the re-executed process so that a second exec is never attempted (even if the dynamic
 # loader refused the preload, which it reports on stderr).
@@ -36,6 +42,12 @@ def lan_mode(env: Mapping[str, str] = os.environ) -> bool:
     """LAN mode is an explicit opt-in (VIZZY_DDS_LAN=1): then Cyclone's own defaults or the user's
     CYCLONEDDS_URI decide the interfaces, as for any ROS 2 process."""
     return env.get('VIZZY_DDS_LAN', '') in ('1', 'true', 'yes')
+
+
+def default_bind_host(env: Mapping[str, str] = os.environ) -> str:
+    """Where a server of ours (the live view) listens unless told otherwise: loopback, or every
+    interface in LAN mode."""
+    return WILDCARD_V4 if lan_mode(env) else LOOPBACK_V4
 
 
 def bundled_runtime(env: Mapping[str, str] = os.environ) -> bool:
@@ -80,7 +92,7 @@ def exec_loopback_bound() -> None:
     if os.environ.get(EXEC_MARK) or not wanted() or preloaded():
         return
     if shim_path() is None:
-        print('vizzy: warning: receive sockets bind 0.0.0.0 (reachable from the LAN): the '
+        print(f'vizzy: warning: receive sockets bind {WILDCARD_V4} (reachable from the LAN): the '
               'loopback-bind shim was not built; install a C compiler and reinstall vizzy_runtime',
               file=sys.stderr, flush=True)
         return
