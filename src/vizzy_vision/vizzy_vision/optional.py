@@ -6,6 +6,7 @@ program without it ends with one line saying what to install instead of a traceb
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 
 # Top-level modules that only rendering needs (the simulated head and its physics engine).
@@ -26,8 +27,6 @@ def simulator_missing(exc: ModuleNotFoundError, program: str) -> str | None:
 def main_needing_simulator(main: Callable[[list[str] | None], int], program: str
                            ) -> Callable[..., int]:
     """main, returning 2 with simulator_missing's line on stderr when the simulator is absent."""
-    import sys
-
     def wrapped(argv: list[str] | None = None) -> int:
         try:
             return main(argv)

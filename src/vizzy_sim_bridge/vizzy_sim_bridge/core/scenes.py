@@ -31,7 +31,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from vizzy_vision.frames import matrix_to_quaternion, quaternion_yaw, quaternion_z_to, to_wxyz
+from vizzy_vision.frames import matrix_to_quaternion, quaternion_about, quaternion_z_to, to_wxyz
 from vizzy_vision.kinematics import EGO_HEIGHT, WAIST_HEIGHT
 
 SCENE_NAMES: tuple[str, ...] = ('tabletop', 'visual_search', 'pedestrians')
@@ -448,7 +448,7 @@ def tabletop(seed: int) -> Scene:
         color = _DISTRACTOR_COLORS[int(rng.integers(len(_DISTRACTOR_COLORS)))]
         x, y = _place(rng, placed, 0.5 * math.hypot(sx, sy) + 0.005, xr, yr)
         p = on_table(x, y, sz / 2)
-        q = quaternion_yaw(yaw)
+        q = quaternion_about('z', yaw)
         name = f'box_{i}'
         b.add(dict(name=name, kind='box', shape='box', position=_base(p), orientation=q,
                    size=(float(sx), float(sy), sz), color=color),
@@ -470,7 +470,7 @@ def tabletop(seed: int) -> Scene:
     yaw = float(rng.uniform(0, np.pi))
     x, y = _place(rng, placed, span / 2 + 0.02, xr, yr)
     p = on_table(x, y, (post_h + rr) / 2)
-    q = quaternion_yaw(yaw)
+    q = quaternion_about('z', yaw)
     hz = (post_h + rr) / 2
     handle = (f'<body name="handle_0" pos="{_f(*p)}" quat="{_mj_quat(q)}">'
               f'<geom type="capsule" fromto="{_f(-span / 2, 0, -hz + rr, -span / 2, 0, hz - rr)}" '
@@ -660,7 +660,7 @@ def pedestrian_boxes(raw: list[dict[str, Any]]) -> list[dict[str, Any]]:
         elif 'quaternion' in box or 'orientation' in box:
             q = tuple(float(v) for v in box['quaternion' if 'quaternion' in box else 'orientation'])
         else:
-            q = quaternion_yaw(float(box.get('yaw', 0.0)))
+            q = quaternion_about('z', float(box.get('yaw', 0.0)))
         out.append({'id': int(box.get('id', k)), 'center': _base(center),
                     'size': tuple(float(v) for v in size), 'orientation': q,
                     'label': str(box.get('label', 'person'))})

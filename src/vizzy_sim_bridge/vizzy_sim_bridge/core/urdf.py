@@ -35,7 +35,12 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from vizzy_vision.frames import quaternion_multiply, rotation_matrix
+from vizzy_vision.frames import (
+    from_wxyz,
+    quaternion_conjugate,
+    quaternion_multiply,
+    rotation_matrix,
+)
 from vizzy_vision.kinematics import (
     FRAME_NAMES,
     JOINT_LIMITS,
@@ -82,10 +87,6 @@ def matrix_to_rpy(r: np.ndarray) -> tuple[float, float, float]:
     return roll, pitch, yaw
 
 
-def _conjugate(q: Sequence[float]) -> tuple[float, float, float, float]:
-    return (-q[0], -q[1], -q[2], q[3])
-
-
 def _joint_of(name: str, at_zero: list[Transform]) -> tuple[int, tuple[float, float, float]]:
     """(index into joint_transforms(), unit axis in the child frame) of joint name."""
     moved = joint_transforms({name: _PROBE_ANGLE})
@@ -97,7 +98,7 @@ def _joint_of(name: str, at_zero: list[Transform]) -> tuple[int, tuple[float, fl
     i = changed[0]
     if not np.allclose(at_zero[i].translation, moved[i].translation, rtol=0.0, atol=1e-12):
         raise RuntimeError(f'{name} translates its child: not a revolute joint')
-    rel = quaternion_multiply(_conjugate(at_zero[i].rotation), moved[i].rotation)
+    rel = quaternion_multiply(quaternion_conjugate(at_zero[i].rotation), moved[i].rotation)
     if rel[3] < 0.0:
         rel = (-rel[0], -rel[1], -rel[2], -rel[3])
     axis = np.asarray(rel[:3]) / math.sin(_PROBE_ANGLE / 2.0)
@@ -156,17 +157,14 @@ def _origin(parent: ET.Element, xyz: Sequence[float] | np.ndarray, rpy: Sequence
     ET.SubElement(parent, 'origin', xyz=_nums(xyz, digits), rpy=_nums(rpy, digits))
 
 
-def _wxyz_to_matrix(q: Sequence[float]) -> np.ndarray:
-    return rotation_matrix((q[1], q[2], q[3], q[0]))
-
-
 def _visuals(model: mujoco.MjModel, body: int, materials: dict[str, str]) -> list[ET.Element]:
     """URDF <visual> elements of the robot geoms of one MuJoCo body (frame = the link's)."""
     out = []
     g = mujoco.mjtGeom
     for i in np.flatnonzero((model.geom_bodyid == body) & (model.geom_group == ROBOT_GROUP)):
         kind, size = int(model.geom_type[i]), model.geom_size[i].astype(np.float64)
-        pos, rot = model.geom_pos[i].astype(np.float64), _wxyz_to_matrix(model.geom_quat[i])
+        pos = model.geom_pos[i].astype(np.float64)
+        rot = rotation_matrix(from_wxyz(model.geom_quat[i]))
         parts: list[tuple[np.ndarray, str, dict[str, str]]] = []
         d = VISUAL_DIGITS
         radius = _num(size[0], d)
@@ -199,7 +197,7 @@ def _inertial(model: mujoco.MjModel, body: int) -> ET.Element:
     inertial = ET.Element('inertial')
     d = VISUAL_DIGITS
     _origin(inertial, model.body_ipos[body],
-            matrix_to_rpy(_wxyz_to_matrix(model.body_iquat[body])), d)
+            matrix_to_rpy(rotation_matrix(from_wxyz(model.body_iquat[body]))), d)
     ET.SubElement(inertial, 'mass', value=_num(model.body_mass[body], d))
     ixx, iyy, izz = (_num(v, d) for v in model.body_inertia[body])
     ET.SubElement(inertial, 'inertia', ixx=ixx, ixy='0', ixz='0', iyy=iyy, iyz='0', izz=izz)
