@@ -162,6 +162,18 @@ PARAMETERS: tuple[Param, ...] = (
     Param('full_frame_period', DEPLOYED['full_frame_period'], 'Fewest frames between two '
           'full-frame detections (where new tracks are born; each is paid from the S_max '
           'budget the regions leave), in [1, 100000].', '[1, 100000]'),
+    Param('birth_share', DEPLOYED['birth_share'], 'Share of each frame\'s S_max saved for '
+          'full-frame detections (track births); the regions get the rest, in [0, 0.95].',
+          '[0, 0.95]'),
+    Param('birth_score', DEPLOYED['birth_score'], 'Least detector score (HOG\'s SVM margin) '
+          'of a detection that starts a track or brings back a lost one; weaker detections '
+          'still update tracks, in [-10, 10].', '[-10, 10]'),
+    Param('report_misses', DEPLOYED['report_misses'], 'A track is published while it has at '
+          'most this many consecutive misses (-1: while it lives), in [-1, 1000].',
+          '[-1, 1000]'),
+    Param('keep_lost', DEPLOYED['keep_lost'], 'Frames a deleted track is remembered; a '
+          'detection in its gate brings it back under its id (0: never), in [0, 1000].',
+          '[0, 1000]'),
     Param('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in '
           '[-10, 10].', '[-10, 10]'),
     # step 8 from 8: the multiples of 8 (the HOG block stride)
@@ -198,6 +210,8 @@ PARAMETERS: tuple[Param, ...] = (
           'ego-motion.', constraints='a frame id, not empty'),
 )
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
+TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
+                    'keep_lost')
 DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
 PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
 TF_HISTORY_S = 2.0
@@ -243,6 +257,16 @@ def make_hog_detector(params: dict[str, Any]) -> Detector:
 
 #: params -> Detector. Module-level so that a test (or an integrator) can plug in another one.
 DETECTOR_FACTORY: Callable[[dict[str, Any]], Detector] = make_hog_detector
+
+
+def track_settings(params: dict[str, Any]) -> dict[str, Any]:
+    """The TrackerConfig fields the node's track parameters set (births, reporting)."""
+    misses = int(params['report_misses'])
+    return {'full_frame_period': int(params['full_frame_period']),
+            'birth_share': float(params['birth_share']),
+            'birth_score': float(params['birth_score']),
+            'report_misses': None if misses < 0 else misses,
+            'keep_lost': int(params['keep_lost'])}
 
 
 def planner_config(params: dict[str, Any]) -> PlannerConfig:
@@ -321,8 +345,7 @@ class MotPlannerNode(Node):
     # --- set-up and inputs ------------------------------------------------------------------
 
     def _new_tracker(self) -> MotTracker:
-        cfg = deployed_config(planner_config(self._p),
-                              full_frame_period=int(self._p['full_frame_period']))
+        cfg = deployed_config(planner_config(self._p), **track_settings(self._p))
         return MotTracker(DETECTOR_FACTORY(dict(self._p)), cfg)
 
     def _person_gate(self) -> ConsistencyGate:
@@ -337,10 +360,9 @@ class MotPlannerNode(Node):
             self._tracker = self._new_tracker()
             self._forget_tracks()
             self.get_logger().info('detector settings changed: tracker restarted')
-        elif any(name in changed for name in PLANNER_PARAMETERS):
+        elif any(name in changed for name in PLANNER_PARAMETERS + TRACK_PARAMETERS):
             t = self._tracker         # keep the tracks: only the planner's settings change
-            t.cfg = replace(t.cfg, planner=planner_config(self._p),
-                            full_frame_period=int(self._p['full_frame_period']))
+            t.cfg = replace(t.cfg, planner=planner_config(self._p), **track_settings(self._p))
             t.planner.cfg = t.cfg.planner
 
     def _on_gaze_state(self, msg: Any) -> None:

@@ -257,6 +257,15 @@ def test_bad_frames_size_change_and_parameters(graph, capfd) -> None:
     assert all(len(m.regions) <= 1 and m.k_max == 1 for m in after_change())
     assert set(mot._tracker.tracks.ids.tolist()) == ids
     assert not mot.set_parameters([Parameter('s_max', value=1.5)])[0].successful
+    # the track births and reporting keep the tracks as well (-1: report a track while it lives)
+    assert all(r.successful for r in mot.set_parameters([
+        Parameter('birth_share', value=0.4), Parameter('report_misses', value=-1),
+        Parameter('keep_lost', value=3), Parameter('birth_score', value=0.5)]))
+    cfg = mot._tracker.cfg
+    assert set(mot._tracker.tracks.ids.tolist()) == ids
+    assert (cfg.birth_share, cfg.report_misses, cfg.keep_lost, cfg.birth_score) == (
+        0.4, None, 3, 0.5)
+    assert not mot.set_parameters([Parameter('birth_share', value=0.99)])[0].successful
     assert not mot.set_parameters([Parameter('win_stride', value=12)])[0].successful
 
 
