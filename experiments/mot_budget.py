@@ -3,12 +3,17 @@
 
     .venv/bin/python experiments/mot_budget.py --motchallenge ../shared/data/mot17-mini
     .venv/bin/python experiments/mot_budget.py --synthetic [--frames 150]
-    .venv/bin/python experiments/mot_budget.py --sim --new-tracks periodic \
-        --s-max 0.1 0.2 0.4 0.7 1.0 --trials 2          # the run in docs/mot_planner.md
+    .venv/bin/python experiments/mot_budget.py --sim --new-tracks periodic --trials 20 \
+        --area centres pixels --iterations 200 --jobs 2   # the run in docs/results.md
 
 For every K_max in {1, 2, 3, 4} and S_max in [0.1, 1.0] the planner tracks the sequences
 ``--trials`` times (different MCTS seeds; the thesis ran 100), against the full-frame
-baseline (detector on every full frame). By default tracking follows the thesis protocol:
+baseline (detector on every full frame). ``--area`` names one or more readings of S_max run
+side by side (``centres``, the thesis's; ``pixels``, the window-inclusive one). HOG runs
+single-threaded and its time is CPU time per frame, so ``--jobs`` worker processes do not
+distort it; ``--iterations`` replaces the 10 ms wall-clock planning budget by a fixed number
+of MCTS iterations, so a trial does not depend on the machine's load either. ``--plot-only``
+redraws the plot from the JSON. By default tracking follows the thesis protocol:
 tracks start from a full-frame detection on the first frame, none are created later. With
 ``--new-tracks periodic`` (MOTChallenge and sim) the planner also starts tracks from a
 full-frame detection every 30 frames, charged at the baseline's full-frame detector time (the
@@ -31,8 +36,9 @@ full frames are paid from the S_max budget and come when the savings allow.
   (what the sim publishes on /sim/ground_truth/left/pedestrians), clipped to the image, with
   the fraction inside the image as visibility. Then as ``--motchallenge`` on that folder.
 
-Writes experiments/results/mot_budget_<name>.png (2x2: detector time and speed-up against
-S_max, MOTP and MOTA against S_max, one line per K_max, dashed: full frame) and .json.
+Writes experiments/results/mot_budget_<name>.png (one column per reading; rows: detector time,
+the share of the image read, MOTP and MOTA against S_max, one line per K_max, median and
+quartiles over trials, dashed: full frame) and .json (per-trial runs and the aggregated grid).
 """
 
 from __future__ import annotations
@@ -58,7 +64,7 @@ from mot_planner_node.core.motchallenge import find_sequences, load_sequence  # 
 from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
 from mot_planner_node.core.simulated import render, replay_detector_time, track_synthetic  # noqa: E402
 from mot_planner_node.core.tracker import DEPLOYED, PROTOCOLS, MotTracker, TrackerConfig  # noqa: E402
-from mot_planner_node.evaluate import read_frame, run_sequence, timing_summary  # noqa: E402
+from mot_planner_node.evaluate import read_frame, read_summary, run_sequence, timing_summary  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / 'results'
 CACHE = Path(__file__).resolve().parent / 'cache'
@@ -68,12 +74,10 @@ THESIS_TRIALS = 100
 THESIS_S_MAX = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0]
 
 
-def protocol_of(summary: dict, cpu_s: float | None = None, new_tracks: str | None = None,
-                area: str | None = None) -> dict:
-    """The protocol object of a result (issue 16), from the result's own fields (new_tracks and
-    area are stored in results written since issue 16; pass them for older files)."""
-    new_tracks = new_tracks or summary.get('new_tracks')
-    area = area or summary.get('area')
+def protocol_of(summary: dict, cpu_s: float | None = None) -> dict:
+    """The protocol object of a result (issue 16), from the result's own fields."""
+    new_tracks = summary.get('new_tracks')
+    areas = summary.get('areas') or ['centres']
     s_values = sorted({r['s_max'] for r in summary['grid']})
     differs = [f"{summary['trials']} trials per (K_max, S_max) instead of {THESIS_TRIALS}",
                f"{summary['frames']} frames of {len(summary['sequences'])} sequence(s) "
@@ -85,13 +89,21 @@ def protocol_of(summary: dict, cpu_s: float | None = None, new_tracks: str | Non
                        "on each frame's regions")
     if new_tracks not in (None, 'none'):
         differs.append(f"new tracks '{new_tracks}' (thesis: only from the first frame)")
-    if area not in (None, 'centres'):
-        differs.append(f"S_max counts '{area}' (thesis reading: 'centres')")
+    if areas != ['centres']:
+        differs.append(f"S_max read as {' and '.join(repr(a) for a in areas)}, side by side "
+                       "(thesis reading: 'centres')")
+    if summary.get('iterations'):
+        differs.append(f"a planning budget of {summary['iterations']} MCTS iterations instead "
+                       'of 10 ms wall clock (what 10 ms buys on this CPU on the simulated street '
+                       'at K_max 1; deterministic for a seed whatever the load of parallel '
+                       'trials)')
+    if summary['runs'] and summary['runs'][0].get('detector_cpu_ms_after_bootstrap') is not None:
+        differs.append('detector time is single-threaded HOG CPU time per frame')
     return make_protocol(
         data=f"{summary['name']}: {', '.join(summary['sequences'])}, {summary['frames']} frames",
         repetitions=summary['trials'], thesis_repetitions=THESIS_TRIALS,
         models='OpenCV HOG people detector (default SVM); MCTS planner',
-        differs_from_thesis=differs, cpu_s=cpu_s, new_tracks=new_tracks, s_max_reading=area)
+        differs_from_thesis=differs, cpu_s=cpu_s, new_tracks=new_tracks, s_max_readings=areas)
 
 
 class SharedFullFrames:
@@ -113,57 +125,106 @@ class SharedFullFrames:
         return self._cache[key]
 
 
+# The worker processes' share of the grid (set before the pool forks; read-only after).
+_GRID: dict[str, Any] = {}
+
+
+def _tracker_config(protocol: str, new_tracks: str, period: int, k: int, s: float, t: int,
+                    area: str, budget_ms: float | None, iterations: int | None) -> TrackerConfig:
+    """The planner's tracker for one grid cell (``protocol``'s tracking terms)."""
+    terms = PROTOCOLS[protocol]
+    return TrackerConfig(mode='planner', new_tracks=new_tracks, full_frame_period=period,
+                         birth_share=terms['birth_share'], report_misses=terms['report_misses'],
+                         birth_score=terms['birth_score'], keep_lost=terms['keep_lost'],
+                         planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t,
+                                               area=area, max_iterations=iterations))
+
+
+def _run_all(cfg: TrackerConfig, detector: Any) -> dict[str, Any]:
+    """Every sequence through one tracker: metrics, timings and the share of the image read.
+
+    For the planner, full frames after the first (births, 'periodic' or 'budget') are charged
+    at the baseline's full-frame time (wall and CPU), since SharedFullFrames answers them from
+    its cache; ``*_planned_frames`` is the time on the other frames."""
+    seqs, images = _GRID['seqs'], _GRID['images']
+    runs = {s.name: run_sequence(s, MotTracker(detector, cfg), images=images[s.name],
+                                 progress=False) for s in seqs}
+    m = summarize({n: r.evaluator for n, r in runs.items()})['OVERALL']
+    out = {**m, **timing_summary(list(runs.values())), **read_summary(list(runs.values()))}
+    if cfg.mode == 'planner':
+        full = np.array([i > 0 and f for r in runs.values() for i, f in enumerate(r.full)])
+        first = np.array([i == 0 for r in runs.values() for i in range(len(r.detector_s))])
+        planned = ~full & ~first
+        n_full = int(full.sum())
+        for key, times in (('detector_ms', 'detector_s'), ('detector_cpu_ms', 'detector_cpu_s')):
+            t = np.concatenate([getattr(r, times) for r in runs.values()])[planned]
+            full_ms = _GRID['full_ms'][key]
+            out[f'{key}_planned_frames'] = 1e3 * float(t.mean())
+            out[f'{key}_after_bootstrap'] = (1e3 * float(t.sum()) + n_full * full_ms) / (
+                int(planned.sum()) + n_full)
+        out['full_frames_after_bootstrap'] = n_full
+        read = np.concatenate([np.asarray(r.processed, float) for r in runs.values()])
+        out['read_fraction_planned_frames'] = float(read[planned].mean())
+    return out
+
+
+def _run_cell(cell: tuple[int, float, int, str]) -> dict[str, Any]:
+    k, s, t, area = cell
+    g = _GRID
+    cfg = _tracker_config(g['protocol'], g['new_tracks'], g['period'], k, s, t, area,
+                          g['budget_ms'], g['iterations'])
+    return {'area': area, 'k_max': k, 's_max': s, 'trial': t, **_run_all(cfg, g['shared'])}
+
+
 def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], trials: int,
-                      budget_ms: float, new_tracks: str = 'none',
-                      period: int = 30, area: str = 'centres') -> dict[str, Any]:
+                      budget_ms: float | None, new_tracks: str = 'none',
+                      period: int = 30, areas: tuple[str, ...] = ('centres',),
+                      iterations: int | None = None, jobs: int = 1) -> dict[str, Any]:
+    """The (reading, K_max, S_max, trial) grid against the full-frame baseline.
+
+    HOG runs single-threaded (cv2.setNumThreads(1)) in the baseline and every cell, so the
+    detector's CPU time per frame compares like with like however many ``jobs`` run side by
+    side; ``iterations`` (instead of the wall-clock ``budget_ms``) makes the planner's search
+    independent of the machine's load."""
+    import cv2
+    cv2.setNumThreads(1)
     protocol = 'deployed' if new_tracks == 'budget' else 'thesis'
     seqs = [load_sequence(p) for p in find_sequences(path)]
     images = {s.name: [read_frame(s, i)[0] for i in range(len(s))] for s in seqs}
     hog = HogDetector()
     shared = SharedFullFrames(hog)
-
-    def run_all(cfg: TrackerConfig, detector: Any, full_ms: float | None = None
-                ) -> dict[str, Any]:
-        runs = {s.name: run_sequence(s, MotTracker(detector, cfg), images=images[s.name],
-                                     progress=False) for s in seqs}
-        m = summarize({n: r.evaluator for n, r in runs.items()})['OVERALL']
-        out = {**m, **timing_summary(list(runs.values()))}
-        if cfg.mode == 'planner':
-            # Frames 2..n: planned frames as measured; full frames after the first (births,
-            # 'periodic' or 'budget') are charged at the baseline's full-frame time, since
-            # SharedFullFrames answers them from its cache.
-            full = [i > 0 and f for r in runs.values() for i, f in enumerate(r.full)]
-            first = [i == 0 for r in runs.values() for i in range(len(r.detector_s))]
-            det = np.concatenate([r.detector_s for r in runs.values()])
-            planned = det[~np.array(full) & ~np.array(first)]
-            n_full = int(np.sum(full))
-            out['detector_ms_planned_frames'] = 1e3 * float(planned.mean())
-            out['detector_ms_after_bootstrap'] = (1e3 * float(planned.sum()) + n_full * full_ms) / (
-                len(planned) + n_full)
-            out['full_frames_after_bootstrap'] = n_full
-        return out
+    _GRID.update(seqs=seqs, images=images, shared=shared, protocol=protocol,
+                 new_tracks=new_tracks, period=period, budget_ms=budget_ms,
+                 iterations=iterations)
 
     print('full-frame baseline ...', file=sys.stderr, flush=True)
-    baseline = run_all(TrackerConfig(mode='full', new_tracks=new_tracks,
-                                     report_misses=PROTOCOLS[protocol]['report_misses'],
-                                     birth_score=PROTOCOLS[protocol]['birth_score'],
-                                     keep_lost=PROTOCOLS[protocol]['keep_lost']), hog)
-    full_ms = baseline['detector_ms_after_bootstrap']
+    terms = PROTOCOLS[protocol]
+    baseline = _run_all(TrackerConfig(mode='full', new_tracks=new_tracks,
+                                      report_misses=terms['report_misses'],
+                                      birth_score=terms['birth_score'],
+                                      keep_lost=terms['keep_lost']), hog)
+    _GRID['full_ms'] = {'detector_ms': baseline['detector_ms_after_bootstrap'],
+                        'detector_cpu_ms': baseline['detector_cpu_ms_after_bootstrap']}
     for s in seqs:                      # seed the cache with the full frames of every run
         for i, image in enumerate(images[s.name]):
             if i == 0 or (new_tracks == 'periodic' and i % period == 0):
                 shared.detect(image)
+    grid = [(k, s, t, a) for a in areas for k in k_values for s in s_values
+            for t in range(trials)]
+    bar = tqdm(total=len(grid), desc='reading x K_max x S_max x trial', file=sys.stderr)
     cells = []
-    grid = [(k, s, t) for k in k_values for s in s_values for t in range(trials)]
-    for k, s, t in tqdm(grid, desc='K_max x S_max x trial', file=sys.stderr):
-        cfg = TrackerConfig(mode='planner', new_tracks=new_tracks, full_frame_period=period,
-                            birth_share=PROTOCOLS[protocol]['birth_share'],
-                            report_misses=PROTOCOLS[protocol]['report_misses'],
-                            birth_score=PROTOCOLS[protocol]['birth_score'],
-                            keep_lost=PROTOCOLS[protocol]['keep_lost'],
-                            planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t,
-                                                  area=area))
-        cells.append({'k_max': k, 's_max': s, 'trial': t, **run_all(cfg, shared, full_ms)})
+    if jobs > 1:
+        from multiprocessing import get_context
+        with get_context('fork').Pool(jobs) as pool:      # workers inherit _GRID
+            for cell in pool.imap_unordered(_run_cell, grid, chunksize=1):
+                cells.append(cell)
+                bar.update()
+    else:
+        for cell in map(_run_cell, grid):
+            cells.append(cell)
+            bar.update()
+    bar.close()
+    cells.sort(key=lambda c: (areas.index(c['area']), c['k_max'], c['s_max'], c['trial']))
     return {'sequences': [s.name for s in seqs], 'frames': sum(len(s) for s in seqs),
             'baseline': baseline, 'cells': cells}
 
@@ -253,49 +314,97 @@ def synthetic_grid(k_values: list[int], s_values: list[float], trials: int, budg
             'cells': cells}
 
 
+METRICS = ('detector_cpu_ms_after_bootstrap', 'detector_ms_after_bootstrap', 'motp', 'mota',
+           'idf1', 'plan_ms_p95', 'detector_cpu_ms_planned_frames', 'detector_ms_planned_frames',
+           'read_fraction_planned_frames', 'read_fraction_max_tracking', 'num_matches')
+
+
 def aggregate(result: dict[str, Any]) -> list[dict[str, Any]]:
-    """Mean and std over trials per (K_max, S_max)."""
+    """Per (reading, K_max, S_max): mean, std, median and quartiles over trials. The speed-up
+    is on detector CPU time where the cells have it (single-threaded HOG), else wall time."""
     out = []
-    keys = sorted({(c['k_max'], c['s_max']) for c in result['cells']})
-    base_ms = result['baseline']['detector_ms_after_bootstrap']
-    for k, s in keys:
-        cs = [c for c in result['cells'] if (c['k_max'], c['s_max']) == (k, s)]
-        row: dict[str, Any] = {'k_max': k, 's_max': s, 'trials': len(cs)}
-        for m in ('detector_ms_after_bootstrap', 'motp', 'mota', 'idf1', 'plan_ms_p95',
-                  'detector_ms_planned_frames', 'num_matches'):
+    cells = result['cells']
+    keys = sorted({(c.get('area', 'centres'), c['k_max'], c['s_max']) for c in cells})
+    base = result['baseline']
+    cpu = all(c.get('detector_cpu_ms_after_bootstrap') is not None for c in cells)
+    time_key = 'detector_cpu_ms_after_bootstrap' if cpu else 'detector_ms_after_bootstrap'
+    for a, k, s in keys:
+        cs = [c for c in cells if (c.get('area', 'centres'), c['k_max'], c['s_max']) == (a, k, s)]
+        row: dict[str, Any] = {'area': a, 'k_max': k, 's_max': s, 'trials': len(cs)}
+        for m in METRICS:
             v = np.array([c[m] for c in cs if c.get(m) is not None], dtype=float)
             row[m] = float(v.mean()) if v.size else None
             row[m + '_std'] = float(v.std()) if v.size else None
-        row['speedup'] = base_ms / row['detector_ms_after_bootstrap']
+            q1, med, q3 = np.percentile(v, [25, 50, 75]) if v.size else (None,) * 3
+            row[m + '_q1'], row[m + '_median'], row[m + '_q3'] = q1, med, q3
+        row['speedup'] = base[time_key] / row[time_key]
+        row['speedup_on'] = time_key
         out.append(row)
     return out
 
 
+RUN_KEYS = ('area', 'k_max', 's_max', 'trial', 'mota', 'motp', 'idf1', 'num_matches',
+            'num_misses', 'num_false_positives', 'num_switches',
+            'detector_cpu_ms_after_bootstrap', 'detector_ms_after_bootstrap',
+            'detector_cpu_ms_planned_frames', 'read_fraction_planned_frames',
+            'read_fraction_max_tracking', 'plan_ms_p95', 'full_frames_after_bootstrap')
+
+
+def slim(cell: dict[str, Any]) -> dict[str, Any]:
+    """A trial's record as stored in the JSON: the keys the grid and the docs use, floats to
+    5 significant digits (1600 trials per file)."""
+    return {k: float(f'{v:.5g}') if isinstance(v, float) else v
+            for k, v in cell.items() if k in RUN_KEYS}
+
+
+READING_TITLES = {'centres': "S_max counts the centre boxes (the thesis's reading)",
+                  'pixels': 'S_max counts the pixels read (window-inclusive)',
+                  'scaled': 'S_max counts the pixels read at the scale read'}
+
+
 def plot(result: dict[str, Any], rows: list[dict[str, Any]], path: Path, title: str) -> None:
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    """One column per S_max reading; rows: detector time, share of the image read, MOTP, MOTA;
+    median over trials with quartile bars, one line per K_max, dashed: the full frame."""
     base = result['baseline']
+    areas = list(dict.fromkeys(r['area'] for r in rows))
+    cpu = rows[0].get('speedup_on') == 'detector_cpu_ms_after_bootstrap'
+    time_key = 'detector_cpu_ms_after_bootstrap' if cpu else 'detector_ms_after_bootstrap'
+    panels = [(time_key, f"detector {'CPU ' if cpu else ''}time per frame [ms]",
+               base.get(time_key)),
+              ('read_fraction_planned_frames', 'image read on planned frames [fraction]', 1.0),
+              ('motp', 'MOTP [% overlap]', base['motp']),
+              ('mota', 'MOTA', base['mota'])]
+    fig, axes = plt.subplots(len(panels), len(areas), figsize=(5.8 * len(areas), 13),
+                             squeeze=False, sharex=True, sharey='row')
     ks = sorted({r['k_max'] for r in rows})
-    panels = [(axes[0, 0], 'detector_ms_after_bootstrap', 'detector time per frame [ms]',
-               base['detector_ms_after_bootstrap']),
-              (axes[0, 1], 'speedup', 'detector speed-up vs full frame', 1.0),
-              (axes[1, 0], 'motp', 'MOTP [% overlap]', base['motp']),
-              (axes[1, 1], 'mota', 'MOTA', base['mota'])]
-    for ax, key, label, ref in panels:
-        for k in ks:
-            rs = [r for r in rows if r['k_max'] == k]
-            err = [r.get(key + '_std') or 0.0 for r in rs]
-            ax.errorbar([r['s_max'] for r in rs], [r[key] for r in rs], yerr=err, marker='o',
-                        capsize=3, label=f'K_max = {k}')
-        if ref is not None:
-            ax.axhline(ref, color='k', ls='--', label='full frame')
-        ax.set_xlabel('S_max (fraction of the image)')
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    axes[0, 0].set_yscale('log')
+    for j, area in enumerate(areas):
+        for i, (key, label, ref) in enumerate(panels):
+            ax = axes[i, j]
+            for k in ks:
+                rs = [r for r in rows if r['k_max'] == k and r['area'] == area
+                      and r.get(key + '_median') is not None]
+                if not rs:
+                    continue
+                med = np.array([r[key + '_median'] for r in rs])
+                err = np.array([[m - r[key + '_q1'], r[key + '_q3'] - m]
+                                for m, r in zip(med, rs, strict=True)]).T
+                ax.errorbar([r['s_max'] for r in rs], med, yerr=err, marker='o', ms=4,
+                            capsize=3, label=f'K_max = {k}')
+            if ref is not None:
+                ax.axhline(ref, color='k', ls='--', label='full frame')
+            if key == 'read_fraction_planned_frames':
+                ax.plot([0, 1], [0, 1], color='0.5', ls=':', label='read = S_max')
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+            if i == len(panels) - 1:
+                ax.set_xlabel('S_max [fraction of the image]')
+        axes[0, j].set_yscale('log')
+        axes[0, j].set_title(READING_TITLES.get(area, area), fontsize=10)
     axes[0, 0].legend(fontsize=8)
-    fig.suptitle(title)
+    axes[1, 0].legend(fontsize=8)
+    fig.suptitle(f'{title}\nmedian over trials, bars: quartiles', fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
@@ -324,54 +433,78 @@ def main() -> None:
                         "detector time counts) or 'budget' (the deployed configuration: full "
                         "frames paid from the S_max budget); the full-frame baseline detects "
                         "everyone on every frame and starts tracks as the planner does")
-    p.add_argument('--area', default=None,
-                   help="what S_max counts: 'centres' (thesis), 'pixels' or 'scaled' (default: "
-                        f"'centres', or {DEPLOYED['area']!r} with --new-tracks budget)")
+    p.add_argument('--area', nargs='+', default=None, choices=('centres', 'pixels', 'scaled'),
+                   help="what S_max counts, one or more readings run side by side: 'centres' "
+                        "(thesis), 'pixels' (window-inclusive) or 'scaled' (default: 'centres', "
+                        f"or {DEPLOYED['area']!r} with --new-tracks budget)")
+    p.add_argument('--iterations', type=int, default=None,
+                   help='plan with this many MCTS iterations instead of the wall-clock '
+                        '--budget-ms (runs that do not depend on the load: use with --jobs)')
+    p.add_argument('--jobs', type=int, default=1, help='worker processes (MOTChallenge, sim)')
+    p.add_argument('--plot-only', action='store_true',
+                   help='redraw the plot from the JSON of --name without recomputing')
     args = p.parse_args()
     budgeted = args.new_tracks == 'budget'
-    area = args.area or (DEPLOYED['area'] if budgeted else 'centres')
+    areas = tuple(args.area or [DEPLOYED['area'] if budgeted else 'centres'])
     period = DEPLOYED['full_frame_period'] if budgeted else 30
+    budget_ms = None if args.iterations else args.budget_ms
 
+    if args.plot_only:
+        name = args.name or ('synthetic' if args.synthetic else 'sim_pedestrians' if args.sim
+                             else args.motchallenge.resolve().name)
+        out = RESULTS / f'mot_budget_{name}.json'
+        summary = json.loads(out.read_text())
+        png = out.with_suffix('.png')
+        plot({'baseline': summary['baseline'], 'cells': summary['runs']}, summary['grid'], png,
+             summary['title'])
+        print(f'wrote {png}', file=sys.stderr)
+        return
     if args.synthetic:
         name = args.name or 'synthetic'
         frames = args.frames or 150
         result = synthetic_grid(args.k_max, args.s_max, args.trials, args.budget_ms, frames)
         title = f'Synthetic street, {frames} frames x {args.trials} trials (HOG timing)'
+        areas = ('centres',)
     elif args.sim:
         frames = args.frames or 300
         seq = render_sim_sequence(args.cache, args.seed, args.people, frames, args.fps)
         name = args.name or 'sim_pedestrians'
-        result = motchallenge_grid(seq, args.k_max, args.s_max, args.trials, args.budget_ms,
-                                   args.new_tracks, period, area)
+        result = motchallenge_grid(seq, args.k_max, args.s_max, args.trials, budget_ms,
+                                   args.new_tracks, period, areas, args.iterations, args.jobs)
         title = (f'Simulated pedestrians (seed {args.seed}, {args.people} people), {frames} '
                  f'frames at {args.fps:g} fps, HOG, {args.trials} trials')
     else:
         name = args.name or args.motchallenge.resolve().name
         result = motchallenge_grid(args.motchallenge, args.k_max, args.s_max, args.trials,
-                                   args.budget_ms, args.new_tracks, period, area)
+                                   budget_ms, args.new_tracks, period, areas, args.iterations,
+                                   args.jobs)
         title = (f'{name}: {len(result["sequences"])} sequences, {result["frames"]} frames, '
                  f'HOG, {args.trials} trials')
     rows = aggregate(result)
     RESULTS.mkdir(exist_ok=True)
     png, out = RESULTS / f'mot_budget_{name}.png', RESULTS / f'mot_budget_{name}.json'
     plot(result, rows, png, title)
-    summary = {'name': name, 'sequences': result['sequences'], 'frames': result['frames'],
-               'trials': args.trials, 'budget_ms': args.budget_ms,
-               'baseline': result['baseline'], 'grid': rows, 'thesis': THESIS,
-               'runs': result['cells'],
+    summary = {'name': name, 'title': title, 'sequences': result['sequences'],
+               'frames': result['frames'], 'trials': args.trials, 'budget_ms': budget_ms,
+               'iterations': args.iterations, 'baseline': result['baseline'], 'grid': rows,
+               'thesis': THESIS, 'runs': [slim(c) for c in result['cells']],
                'new_tracks': None if args.synthetic else args.new_tracks,
-               'area': None if args.synthetic else area}
+               'areas': list(areas)}
     summary['protocol'] = protocol_of(summary, cpu_seconds())
     out.write_text(json.dumps(summary, indent=1, default=float) + '\n')
     at = [r for r in rows if abs(r['s_max'] - 0.1) < 1e-9]
+    time_key = rows[0]['speedup_on']
     for r in at:
-        print(f'K_max={r["k_max"]} S_max=0.1: detector {r["detector_ms_after_bootstrap"]:.1f} ms '
-              f'vs {result["baseline"]["detector_ms_after_bootstrap"]:.1f} ms full frame '
-              f'({r["speedup"]:.1f}x; thesis 12x), MOTP {r["motp"]:.2f} vs '
-              f'{result["baseline"]["motp"]:.2f}', file=sys.stderr)
+        print(f'{r["area"]} K_max={r["k_max"]} S_max=0.1: detector {r[time_key]:.1f} ms vs '
+              f'{result["baseline"][time_key]:.1f} ms full frame ({r["speedup"]:.1f}x; thesis '
+              f'12x), read {r.get("read_fraction_planned_frames") or float("nan"):.3f} of the '
+              f'image, MOTP {r["motp"]:.2f} vs {result["baseline"]["motp"]:.2f}, MOTA '
+              f'{r["mota"]:.3f} vs {result["baseline"]["mota"]:.3f}', file=sys.stderr)
     print(f'wrote {png} and {out}', file=sys.stderr)
+    keys = ('area', 'k_max', time_key, 'speedup', 'read_fraction_planned_frames', 'motp', 'mota')
     print(json.dumps({'name': name, 'png': str(png), 'json': str(out),
-                      'at_smax_0.1': at}), flush=True)
+                      'baseline_' + time_key: result['baseline'][time_key],
+                      'at_smax_0.1': [{k: r.get(k) for k in keys} for r in at]}), flush=True)
 
 
 if __name__ == '__main__':
