@@ -45,14 +45,20 @@ thesis's network input; f0 in px of it) and foveated (K = 5, sigma_1 = sqrt(8/3)
 
 - error vs f0 per network, centred fixation, pass 1 (Figs. 2.7a, 2.9): f0 in {10, 25, 50, 70,
   100, 150} and unfoveated, all images;
-- two passes (Fig. 2.5, th = 0.7, top-5) with the first network (--pass2-model) from the centre
-  and the 8 other points of a 3 x 3 grid, f0 in {25, 50, 100}, every n-th image
-  (--pass2-images 60): second-pass gain centred / off-centre (Fig. 2.9), error per initial
-  fixation (Fig. 2.8);
+- two passes (Fig. 2.5, th = 0.7, top-5) with each network (--pass2-models, default all) from
+  the centre and the 8 other points of a 3 x 3 grid, f0 in {25, 50, 100}, every n-th image
+  (--pass2-images 60; the same images, fixations and f0s for every network): second-pass gain
+  centred / off-centre (Fig. 2.9), error per initial fixation (Fig. 2.8). JSON:
+  second_pass_by_network {network: section}; second_pass = the first network's section (the
+  key other code reads). --pass2-only computes only this part for the networks missing from
+  the existing <name>.json (or --pass2-models) and merges it in (and redraws the plot);
 - localisation vs th (Figs. 2.7b, 2.10a; f0 = 70, pass 1, centred and one off-centre grid point
   per image): the photographs carry no boxes, so each photo is pasted (a square of 0.5-0.7 of
   the side, random place) on another photo of the folder, and the true box is the pasted
-  photo's extent; correct when any top-5 saliency box has IoU >= 0.5 with it.
+  photo's extent; correct when any top-5 saliency box has IoU >= 0.5 with it;
+- localisation vs f0 (Fig. 2.10b; th = 0.7, pass 1, the same collages and fixations): for each
+  f0 of the error-vs-f0 list and unfoveated. --loc-vs-f0-only computes only this part and
+  merges it into the existing <name>.json (and redraws the plot).
 
 Work runs in --jobs worker processes (1 torch thread each). Writes <out>/<name>.json and .png
 (name: foveated_recognition_imagenet), and with --example-only the Fig. 2.5 example
@@ -60,7 +66,9 @@ Work runs in --jobs worker processes (1 torch thread each). Writes <out>/<name>.
 
     export_imagenet_classifier --classes DIR/classes.txt --out /tmp/imagenet lite0 lite1 lite2
     .venv/bin/python experiments/foveated_recognition.py --images DIR \
-        --models /tmp/imagenet/efficientnet_lite{0,1,2}.pt [--quick]
+        --models /tmp/imagenet/efficientnet_lite{0,1,2}.pt [--quick] [--loc-vs-f0-only] \
+        [--pass2-only] [--pass2-models 1 2]
+    .venv/bin/python experiments/foveated_recognition.py --images DIR --plot-only
 """
 
 from __future__ import annotations
@@ -146,19 +154,24 @@ def protocol_folder(result: dict, cpu_s: float | None = None) -> dict:
     """Protocol of a --images run (real photographs, e.g. foveated_recognition_imagenet.json)."""
     names = ', '.join(n['name'] for n in result['networks'])
     sp, loc = result['second_pass'], result['localisation']
+    p2 = list(second_pass_networks(result))
+    count = {1: 'one', 2: 'two', 3: 'three'}.get(len(p2), str(len(p2)))
+    nets = f"network{'s' if len(p2) > 1 else ''} ({', '.join(p2)})"
+    repetitions = {'error vs f0': result['images'], 'two passes': sp['images'],
+                   'localisation': loc['images']}
+    if 'localisation_vs_f0' in result:
+        repetitions['localisation vs f0'] = result['localisation_vs_f0']['images']
     return protocol(
         data=f"{result['images']} labelled photographs ({result['folder']}), squashed to "
              f"{result['size_px']} px",
-        repetitions={'error vs f0': result['images'], 'two passes': sp['images'],
-                     'localisation': loc['images']},
-        thesis_repetitions={'error vs f0': THESIS_IMAGES, 'two passes': THESIS_IMAGES,
-                            'localisation': THESIS_IMAGES},
+        repetitions=repetitions,
+        thesis_repetitions={k: THESIS_IMAGES for k in repetitions},
         models=f'ImageNet classifiers {names} (TorchScript) standing in for {THESIS_NETWORKS}',
         differs_from_thesis=[
             f"{result['images']} photographs instead of ILSVRC 2012's 50000",
             f'networks {names} instead of {THESIS_NETWORKS}',
             f"second pass on {sp['images']} images with a {sp['grid']} grid of initial "
-            'fixations (thesis: 8x8) and one network',
+            f'fixations (thesis: 8x8) and {count} {nets}',
             'localisation on collages (the photographs carry no boxes; thesis: ILSVRC boxes)'],
         cpu_s=cpu_s)
 
@@ -191,16 +204,29 @@ def main() -> int:
     folder.add_argument('--grid', type=int, default=3, help='N x N initial fixations (pass 2)')
     folder.add_argument('--pass2-images', type=int, default=60,
                         help='images for the two-pass grid (every n-th of the folder)')
-    folder.add_argument('--pass2-model', type=int, default=0,
-                        help='which of --models runs the two-pass grid (index)')
+    folder.add_argument('--pass2-models', type=int, nargs='+', default=None,
+                        help='which of --models run the two-pass grid (indices; default: all; '
+                             'the first also fills the legacy second_pass key and the example)')
+    folder.add_argument('--pass2-only', action='store_true',
+                        help='compute only the two-pass grid of --pass2-models (default: the '
+                             'networks missing from <name>.json) and merge it into that JSON')
     folder.add_argument('--loc-images', type=int, default=60,
                         help='photos pasted on a canvas for localisation vs th')
+    folder.add_argument('--loc-vs-f0-only', action='store_true',
+                        help='compute only localisation vs f0 (Fig. 2.10b) and merge it into '
+                             'the existing <name>.json')
     folder.add_argument('--jobs', type=int, default=2, help='worker processes (1 thread each)')
     folder.add_argument('--name', default='foveated_recognition_imagenet',
                         help='output stem under --out')
     parser.add_argument('--plot-only', action='store_true',
-                        help='redraw foveated_recognition[_quick].png from its JSON')
+                        help='redraw foveated_recognition[_quick].png from its JSON (with '
+                             '--images: <name>[_quick].png)')
     args = parser.parse_args()
+    if args.plot_only and args.images is not None:
+        stem = args.name + ('_quick' if args.quick else '')
+        result = json.loads((args.out / f'{stem}.json').read_text())
+        plot_folder(result, folder_grid(result), args.out / f'{stem}.png')
+        return 0
     if args.plot_only:
         stem = 'foveated_recognition_quick' if args.quick else 'foveated_recognition'
         plot(json.loads((args.out / f'{stem}.json').read_text()), args.out / f'{stem}.png')
@@ -449,6 +475,7 @@ FOLDER_F0S = (10.0, 25.0, 50.0, 70.0, 100.0, 150.0)     # px of the 227-px image
 FOLDER_PASS2_F0S = (25.0, 50.0, 100.0)
 LOC_F0 = 70.0                                           # Fig. 2.10a
 LOC_SCALE = (0.5, 0.7)                                  # pasted photo side / canvas side
+LOC_TH = 0.7                                            # Fig. 2.10b: localisation vs f0
 _WORKER: dict = {}
 
 
@@ -477,16 +504,25 @@ def _folder_task(task: tuple) -> tuple:
     clf, fovs = _WORKER['clfs'][net], _WORKER['fovs']
     t0 = time.process_time()
     size = opts['size']
-    if kind == 'loc':
-        rng = np.random.default_rng(1000 + idx)
+    if kind in ('loc', 'locf0'):
+        rng = np.random.default_rng(1000 + idx)      # the same collage for both kinds
         scene, box = paste(read_rgb(path), size, float(rng.uniform(*LOC_SCALE)), rng,
                            background=read_rgb(opts['backgrounds'][idx]))
         centre = ((size - 1) / 2, (size - 1) / 2)
         off = opts['off_centre'][idx % len(opts['off_centre'])]
-        out = np.stack([localisation_hits(clf, scene, box, LOC_F0, centre, opts['thresholds'],
-                                          fovs),
-                        localisation_hits(clf, scene, box, LOC_F0, off, opts['thresholds'],
-                                          fovs)])
+        if kind == 'loc':
+            out = np.stack([localisation_hits(clf, scene, box, LOC_F0, centre,
+                                              opts['thresholds'], fovs),
+                            localisation_hits(clf, scene, box, LOC_F0, off, opts['thresholds'],
+                                              fovs)])
+        else:        # [fixation (centred, off-centre), setting (f0s, then unfoveated)] at LOC_TH
+            settings = [*opts['f0s'], None]
+            out = np.zeros((2, len(settings)), bool)
+            for s, f0 in enumerate(settings):
+                out[0, s] = localisation_hits(clf, scene, box, f0, centre, [LOC_TH], fovs)[0]
+                # unfoveated: the fixation plays no part, one forward / backward serves both
+                out[1, s] = out[0, s] if f0 is None else localisation_hits(
+                    clf, scene, box, f0, off, [LOC_TH], fovs)[0]
     else:
         rgb, _ = fit(read_rgb(path), size)
         centre = ((size - 1) / 2, (size - 1) / 2)
@@ -527,7 +563,7 @@ def run_folder(args: argparse.Namespace) -> int:
     names = [m.stem.replace('efficientnet_', '') for m in args.models]
     if args.example_only:
         args.out.mkdir(parents=True, exist_ok=True)
-        folder_example(clfs[args.pass2_model], items, args.size,
+        folder_example(clfs[(args.pass2_models or [0])[0]], items, args.size,
                        args.out / f'{args.name}_example.png')
         return 0
     info = [{'name': n, 'model': m.name, 'input_size': list(c.preprocessing.input_size)}
@@ -553,16 +589,48 @@ def run_folder(args: argparse.Namespace) -> int:
     pass2_idx = list(range(0, len(items), step2))[:args.pass2_images]
     steploc = max(1, len(items) // max(1, args.loc_images))
     loc_idx = list(range(0, len(items), steploc))[:args.loc_images]
-    p2 = args.pass2_model
-    tasks = [('pass1', n, i, str(items[i].path), items[i].label, opts)
-             for n in range(len(names)) for i in range(len(items))]
-    tasks += [('loc', n, i, str(items[i].path), items[i].label, opts)
-              for n in range(len(names)) for i in loc_idx]
-    tasks += [('pass2', p2, i, str(items[i].path), items[i].label, opts) for i in pass2_idx]
+    stem = args.name + ('_quick' if args.quick else '')
+    path = args.out / f'{stem}.json'
+    if args.loc_vs_f0_only and args.pass2_only:
+        print('foveated_recognition: --loc-vs-f0-only and --pass2-only exclude each other',
+              file=sys.stderr)
+        return 2
+    if args.pass2_only and args.pass2_models is None:       # the networks not yet in the JSON
+        if not path.exists():
+            print(f'foveated_recognition: --pass2-only needs {path} (run without it first)',
+                  file=sys.stderr)
+            return 2
+        have = set(second_pass_networks(json.loads(path.read_text())))
+        args.pass2_models = [n for n, name in enumerate(names) if name not in have]
+        if not args.pass2_models:
+            print(f'foveated_recognition: {path} already holds the second pass of every network '
+                  f'({", ".join(names)}); nothing to compute')
+            return 0
+    p2s = list(range(len(names))) if args.pass2_models is None else list(args.pass2_models)
+    if not p2s or len(set(p2s)) != len(p2s) or not all(0 <= n < len(names) for n in p2s):
+        print(f'foveated_recognition: --pass2-models {p2s}: distinct indices of --models '
+              f'(0..{len(names) - 1}) needed', file=sys.stderr)
+        return 2
+    tasks = []
+    if not args.pass2_only:
+        tasks += [('locf0', n, i, str(items[i].path), items[i].label, opts)
+                  for n in range(len(names)) for i in loc_idx]
+    if not (args.loc_vs_f0_only or args.pass2_only):
+        tasks += [('pass1', n, i, str(items[i].path), items[i].label, opts)
+                  for n in range(len(names)) for i in range(len(items))]
+        tasks += [('loc', n, i, str(items[i].path), items[i].label, opts)
+                  for n in range(len(names)) for i in loc_idx]
+    if not args.loc_vs_f0_only:
+        # the same images (every step2-th of the sorted folder), fixations and f0s for every
+        # network: the selection depends only on the folder, --pass2-images and --grid
+        tasks += [('pass2', n, i, str(items[i].path), items[i].label, opts)
+                  for n in p2s for i in pass2_idx]
     r1 = np.zeros((len(names), len(items), len(f0s) + 1), int)
-    r2 = np.zeros((len(pass2_idx), len(f0s2) + 1, len(fixations), 2), int)
+    r2 = {n: np.zeros((len(pass2_idx), len(f0s2) + 1, len(fixations), 2), int) for n in p2s}
     loc = np.zeros((len(names), len(loc_idx), 2, len(thresholds)), bool)
-    cpu = {'pass1': 0.0, 'pass2': 0.0, 'loc': 0.0}
+    locf0 = np.zeros((len(names), len(loc_idx), 2, len(f0s) + 1), bool)
+    cpu = {'pass1': 0.0, **{f'pass2_{names[n]}': 0.0 for n in p2s}, 'loc': 0.0,
+           'loc_vs_f0': 0.0}
     where2 = {i: k for k, i in enumerate(pass2_idx)}
     whereloc = {i: k for k, i in enumerate(loc_idx)}
     t0 = time.perf_counter()
@@ -571,18 +639,41 @@ def run_folder(args: argparse.Namespace) -> int:
     with ProcessPoolExecutor(args.jobs, ctx, _worker_init, ([str(m) for m in args.models],)) as ex:
         for kind, net, idx, out, dt in tqdm(ex.map(_folder_task, tasks, chunksize=1),
                                             total=len(tasks), desc='tasks', unit='task'):
-            cpu[kind] += dt
+            cpu['loc_vs_f0' if kind == 'locf0' else
+                f'pass2_{names[net]}' if kind == 'pass2' else kind] += dt
             if kind == 'pass1':
                 r1[net, idx] = out[:, 0, 0]
             elif kind == 'pass2':
-                r2[where2[idx]] = out
-            else:
+                r2[net][where2[idx]] = out
+            elif kind == 'loc':
                 loc[net, whereloc[idx]] = out
+            else:
+                locf0[net, whereloc[idx]] = out
     wall = time.perf_counter() - t0
-
-    def err(r: np.ndarray, k: int) -> float:
-        return float((r >= k).mean())
-
+    scene_text = (f'collage: each photo squashed to a square of side {LOC_SCALE[0]}-'
+                  f'{LOC_SCALE[1]} x {size} px (uniform) at a uniform random place on another '
+                  f'photo of the folder (half the folder away) squashed to {size}x{size}; the '
+                  'true box is the pasted photo (the photographs carry no boxes)')
+    criterion = 'any of the pass-1 top-5 saliency boxes with IoU >= 0.5'
+    loc_vs_f0 = {
+        'images': len(loc_idx), 'threshold': LOC_TH, 'f0_px': [*f0s, 'unfoveated'],
+        'scene': scene_text + ' (the same collages as localisation)', 'criterion': criterion,
+        'fixations': 'centred: the image centre; off_centre: the same 3x3-grid point per '
+                     'collage as in localisation; unfoveated: the fixation plays no part '
+                     '(off_centre = centred)',
+        'error': {n: {'centred': (1 - locf0[i, :, 0].mean(0)).round(4).tolist(),
+                      'off_centre': (1 - locf0[i, :, 1].mean(0)).round(4).tolist()}
+                  for i, n in enumerate(names)},
+        'wall_s': round(wall, 1) if args.loc_vs_f0_only else None}
+    if args.loc_vs_f0_only:
+        return merge_loc_vs_f0(path, loc_vs_f0, cpu['loc_vs_f0'], names, f0s)
+    del loc_vs_f0['wall_s']
+    by_net = {names[n]: second_pass_section(r2[n], names[n], grid, fixations, f0s2, args.grid)
+              for n in p2s}
+    if args.pass2_only:
+        return merge_second_pass(path, by_net, {k: v for k, v in cpu.items()
+                                                if k.startswith('pass2_')}, names, wall)
+    err = _err
     settings = f0s + ['unfoveated']
     result: dict = {
         'images': len(items), 'folder': args.images.name, 'size_px': size, 'levels': LEVELS,
@@ -592,6 +683,54 @@ def run_folder(args: argparse.Namespace) -> int:
         'error_vs_f0_centred_pass1': {
             n: [{'f0_px': f, 'top1_error': err(r1[i, :, s], 1), 'top5_error': err(r1[i, :, s], 5)}
                 for s, f in enumerate(settings)] for i, n in enumerate(names)}}
+    # second_pass: the first of --pass2-models (lite0 by default), as read by other code;
+    # second_pass_by_network: the same structure for every network of --pass2-models
+    result['second_pass'] = by_net[names[p2s[0]]]
+    result['second_pass_by_network'] = by_net
+    result['localisation'] = {
+        'images': len(loc_idx), 'f0_px': LOC_F0, 'thresholds': thresholds,
+        'scene': scene_text, 'criterion': criterion,
+        'error': {n: {'centred': (1 - loc[i, :, 0].mean(0)).round(4).tolist(),
+                      'off_centre': (1 - loc[i, :, 1].mean(0)).round(4).tolist()}
+                  for i, n in enumerate(names)}}
+    result['localisation_vs_f0'] = loc_vs_f0
+    result['thesis'] = THESIS
+    result['cpu_s'] = {k: round(v, 1) for k, v in cpu.items()}
+    result['wall_s'] = round(wall, 1)
+    result['jobs'] = args.jobs
+    args.out.mkdir(parents=True, exist_ok=True)
+    result['protocol'] = protocol_folder(result, sum(cpu.values()))
+    path.write_text(json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
+    plot_folder(result, folder_grid(result), path.with_suffix('.png'))
+
+    print(f'{len(items)} images, {len(tasks)} tasks in {wall:.0f} s wall, '
+          f'CPU {sum(cpu.values()):.0f} s ({result["cpu_s"]})')
+    for n, rowsn in result['error_vs_f0_centred_pass1'].items():
+        print(f'{n}: top-1/top-5 error ' + ', '.join(
+            f'{r["f0_px"]}: {r["top1_error"]:.3f}/{r["top5_error"]:.3f}' for r in rowsn))
+    print_second_pass(by_net)
+    best = {n: min(zip(v['centred'], thresholds, strict=True)) for n, v in
+            result['localisation']['error'].items()}
+    print(f'localisation (f0 {LOC_F0:g}, centred): best error, th = {best}')
+    print_loc_vs_f0(loc_vs_f0)
+    summary = {f'{n}_top1_error_unfoveated':
+               result['error_vs_f0_centred_pass1'][n][-1]['top1_error'] for n in names}
+    for n, sec in by_net.items():
+        summary[f'{n}_max_gain_off_centre_points'] = max_gain(sec, 'off_centre')
+        summary[f'{n}_max_gain_centred_points'] = max_gain(sec, 'centred')
+    print(json.dumps(summary))
+    return 0
+
+
+def _err(r: np.ndarray, k: int) -> float:
+    """top-k error: the fraction of true-class ranks >= k."""
+    return float((r >= k).mean())
+
+
+def second_pass_section(r2: np.ndarray, network: str, grid: list, fixations: list,
+                        f0s2: list[float], n2: int) -> dict:
+    """The second_pass object (Figs. 2.8 / 2.9) of one network from its ranks r2 [image,
+    setting (f0s2, then unfoveated), fixation (centre first), pass]."""
     rows = []
     for s, f in enumerate(f0s2 + ['unfoveated']):
         row: dict = {'f0_px': f}
@@ -599,13 +738,13 @@ def run_folder(args: argparse.Namespace) -> int:
             if f == 'unfoveated' and name == 'off_centre':
                 continue
             rr = r2[:, s, sl]
-            row[name] = {p: {'top1_error': err(rr[..., i], 1), 'top5_error': err(rr[..., i], 5)}
+            row[name] = {p: {'top1_error': _err(rr[..., i], 1),
+                             'top5_error': _err(rr[..., i], 5)}
                          for i, p in enumerate(('pass1', 'pass2'))}
             row[name]['gain_top1_points'] = round(100 * (row[name]['pass1']['top1_error'] -
                                                          row[name]['pass2']['top1_error']), 2)
             row[name]['cases'] = int(rr[..., 0].size)
         rows.append(row)
-    n2 = args.grid
     gridmap = {}
     for i, p in enumerate(('pass1', 'pass2')):
         g = np.zeros(len(grid))
@@ -613,52 +752,128 @@ def run_folder(args: argparse.Namespace) -> int:
             k = fixations.index(f) if f in fixations else 0
             g[j] = (r2[:, :len(f0s2), k, i] >= 1).mean()
         gridmap[p] = g.reshape(n2, n2)
-    result['second_pass'] = {
-        'network': names[p2], 'images': len(pass2_idx), 'grid': f'{n2}x{n2}',
+    return {
+        'network': network, 'images': int(r2.shape[0]), 'grid': f'{n2}x{n2}',
         'fixations_px': [[round(u, 1), round(v, 1)] for u, v in fixations],
         'threshold': 0.7, 'top_k': 5, 'by_f0': rows,
         'grid_top1_error_over_f0s': {p: g.round(4).tolist() for p, g in gridmap.items()}}
-    result['localisation'] = {
-        'images': len(loc_idx), 'f0_px': LOC_F0, 'thresholds': thresholds,
-        'scene': f'collage: each photo squashed to a square of side {LOC_SCALE[0]}-'
-                 f'{LOC_SCALE[1]} x {size} px (uniform) at a uniform random place on another '
-                 f'photo of the folder (half the folder away) squashed to {size}x{size}; the '
-                 'true box is the pasted photo (the photographs carry no boxes)',
-        'criterion': 'any of the pass-1 top-5 saliency boxes with IoU >= 0.5',
-        'error': {n: {'centred': (1 - loc[i, :, 0].mean(0)).round(4).tolist(),
-                      'off_centre': (1 - loc[i, :, 1].mean(0)).round(4).tolist()}
-                  for i, n in enumerate(names)}}
-    result['thesis'] = THESIS
-    result['cpu_s'] = {k: round(v, 1) for k, v in cpu.items()}
-    result['wall_s'] = round(wall, 1)
-    result['jobs'] = args.jobs
-    args.out.mkdir(parents=True, exist_ok=True)
-    result['protocol'] = protocol_folder(result, sum(cpu.values()))
-    stem = args.name + ('_quick' if args.quick else '')
-    (args.out / f'{stem}.json').write_text(
-        json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
-    plot_folder(result, gridmap, args.out / f'{stem}.png')
 
-    print(f'{len(items)} images, {len(tasks)} tasks in {wall:.0f} s wall, '
-          f'CPU {sum(cpu.values()):.0f} s ({result["cpu_s"]})')
-    for n, rowsn in result['error_vs_f0_centred_pass1'].items():
-        print(f'{n}: top-1/top-5 error ' + ', '.join(
-            f'{r["f0_px"]}: {r["top1_error"]:.3f}/{r["top5_error"]:.3f}' for r in rowsn))
-    for r in rows:
-        text = '; '.join(f'{k} {r[k]["pass1"]["top1_error"]:.3f} -> '
-                         f'{r[k]["pass2"]["top1_error"]:.3f}' for k in ('centred', 'off_centre')
-                         if k in r)
-        print(f'two passes ({names[p2]}), f0 {r["f0_px"]}: top-1 error {text}')
-    best = {n: min(zip(v['centred'], thresholds, strict=True)) for n, v in
-            result['localisation']['error'].items()}
-    print(f'localisation (f0 {LOC_F0:g}, centred): best error, th = {best}')
-    summary = {f'{n}_top1_error_unfoveated':
-               result['error_vs_f0_centred_pass1'][n][-1]['top1_error'] for n in names}
-    summary['max_gain_off_centre_points'] = max(r['off_centre']['gain_top1_points']
-                                                for r in rows if 'off_centre' in r)
-    summary['max_gain_centred_points'] = max(r['centred']['gain_top1_points'] for r in rows)
-    print(json.dumps(summary))
+
+def second_pass_networks(result: dict) -> dict[str, dict]:
+    """The second-pass sections of a folder result by network (older results: only
+    second_pass, one network)."""
+    return result.get('second_pass_by_network') or {
+        result['second_pass']['network']: result['second_pass']}
+
+
+def max_gain(sec: dict, name: str) -> float:
+    """The largest top-1 gain of pass 2 over pass 1 (points) over the f0s, centred or
+    off_centre."""
+    return max(r[name]['gain_top1_points'] for r in sec['by_f0'] if name in r)
+
+
+def print_second_pass(by_net: dict[str, dict]) -> None:
+    for n, sec in by_net.items():
+        for r in sec['by_f0']:
+            text = '; '.join(f'{k} {r[k]["pass1"]["top1_error"]:.3f} -> '
+                             f'{r[k]["pass2"]["top1_error"]:.3f}'
+                             for k in ('centred', 'off_centre') if k in r)
+            print(f'two passes ({n}), f0 {r["f0_px"]}: top-1 error {text}')
+        print(f'two passes ({n}): max top-1 gain centred {max_gain(sec, "centred"):.2f}, '
+              f'off-centre {max_gain(sec, "off_centre"):.2f} points (thesis: 10, 43)')
+
+
+SECOND_PASS_SAME = ('images', 'grid', 'fixations_px', 'threshold', 'top_k')
+
+
+def merge_second_pass(path: Path, by_net: dict[str, dict], cpu: dict[str, float],
+                      names: list[str], wall: float) -> int:
+    """--pass2-only: put the second-pass sections of more networks into the existing result
+    (second_pass_by_network; second_pass, read by other code, stays), after checking that they
+    were made with the same images, grid, fixations, f0s, threshold and top-k; add their CPU
+    time, redo the protocol, rewrite JSON and plot."""
+    if not path.exists():
+        print(f'foveated_recognition: --pass2-only needs {path} (run without it first)',
+              file=sys.stderr)
+        return 2
+    result = json.loads(path.read_text())
+    have = [n['name'] for n in result['networks']]
+    old = result['second_pass']
+    key = lambda sec: ([sec[k] for k in SECOND_PASS_SAME],  # noqa: E731
+                       [r['f0_px'] for r in sec['by_f0']])
+    for sec in by_net.values():
+        if have != names or key(rounded(sec)) != key(old):
+            print(f'foveated_recognition: {path} was made with networks {have} and a second '
+                  f'pass {key(old)}; this run has {names}, {key(rounded(sec))}', file=sys.stderr)
+            return 2
+    merged = dict(second_pass_networks(result))
+    for n, sec in by_net.items():
+        if n in merged:
+            print(f'foveated_recognition: replacing the second pass of {n}')
+        merged[n] = rounded(sec)
+    merged = {n: merged[n] for n in names if n in merged}
+    if old['network'] in by_net:
+        old = merged[old['network']]
+    out: dict = {}
+    for k, v in result.items():                   # second_pass_by_network after second_pass
+        if k == 'second_pass_by_network':
+            continue
+        out[k] = old if k == 'second_pass' else v
+        if k == 'second_pass':
+            out['second_pass_by_network'] = merged
+    cpu_s: dict = {}
+    for k, v in out['cpu_s'].items():             # the old run's 'pass2': its one network
+        cpu_s[f"pass2_{result['second_pass']['network']}" if k == 'pass2' else k] = v
+    cpu_s.update({k: round(v, 1) for k, v in cpu.items()})
+    out['cpu_s'] = cpu_s
+    out['protocol'] = protocol_folder(out, sum(cpu_s.values()))
+    path.write_text(json.dumps(rounded(out), indent=1, allow_nan=False) + '\n')
+    plot_folder(out, folder_grid(out), path.with_suffix('.png'))
+    print_second_pass({n: merged[n] for n in by_net})
+    print(f'second pass of {", ".join(by_net)}: {sum(cpu.values()):.0f} s CPU ({cpu}), '
+          f'{wall:.0f} s wall -> {path}')
     return 0
+
+
+def print_loc_vs_f0(sec: dict) -> None:
+    for n, e in sec['error'].items():
+        print(f'localisation vs f0 (th {sec["threshold"]:g}), {n}: ' + ', '.join(
+            f'{f}: {c:.3f}/{o:.3f}' for f, c, o in zip(sec['f0_px'], e['centred'],
+                                                       e['off_centre'], strict=True))
+            + ' (centred/off-centre)')
+
+
+def merge_loc_vs_f0(path: Path, section: dict, cpu_s: float, names: list[str],
+                    f0s: list[float]) -> int:
+    """--loc-vs-f0-only: put the localisation-vs-f0 section into the existing result (same
+    networks, f0 list and collages), add its CPU time, redo the protocol, rewrite JSON and plot."""
+    if not path.exists():
+        print(f'foveated_recognition: --loc-vs-f0-only needs {path} (run without it first)',
+              file=sys.stderr)
+        return 2
+    result = json.loads(path.read_text())
+    have = [n['name'] for n in result['networks']]
+    old_f0s = [r['f0_px'] for r in next(iter(result['error_vs_f0_centred_pass1'].values()))]
+    if have != names or old_f0s != [*f0s, 'unfoveated'] or \
+            result['localisation']['images'] != section['images']:
+        print(f'foveated_recognition: {path} was made with networks {have}, f0 {old_f0s}, '
+              f"{result['localisation']['images']} collages; this run has {names}, {f0s}, "
+              f"{section['images']}", file=sys.stderr)
+        return 2
+    result['localisation_vs_f0'] = section
+    result['cpu_s']['loc_vs_f0'] = round(cpu_s, 1)
+    result['protocol'] = protocol_folder(result, sum(result['cpu_s'].values()))
+    path.write_text(json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
+    plot_folder(result, folder_grid(result), path.with_suffix('.png'))
+    print_loc_vs_f0(section)
+    print(f"localisation vs f0: {cpu_s:.0f} s CPU, {section['wall_s']:.0f} s wall -> {path}")
+    return 0
+
+
+def folder_grid(result: dict) -> dict[str, np.ndarray]:
+    """The pass-1 / pass-2 error grids (Fig. 2.8) as stored in a folder result."""
+    return {p: np.asarray(g, float)
+            for p, g in result['second_pass']['grid_top1_error_over_f0s'].items()}
 
 
 def folder_example(clf: Classifier, items: list, size: int, path: Path,
@@ -714,7 +929,14 @@ def plot_folder(result: dict, grid: dict[str, np.ndarray], path: Path) -> None:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 4, figsize=(21, 4.6))
+    fig = plt.figure(figsize=(17, 10))
+    gs = fig.add_gridspec(2, 6)
+    # top row: Figs. 2.7a, 2.9, 2.8 (classification); bottom row: Figs. 2.7b / 2.10a, 2.10b
+    ax = [fig.add_subplot(gs[0, 0:2]), fig.add_subplot(gs[1, 1:3]), None,
+          fig.add_subplot(gs[0, 4:6]), fig.add_subplot(gs[1, 3:5])]
+    sub = gs[0, 2:4].subgridspec(1, 2, wspace=0.08)
+    ax9 = [fig.add_subplot(sub[0, 0])]
+    ax9.append(fig.add_subplot(sub[0, 1], sharey=ax9[0]))
     colours = plt.rcParams['axes.prop_cycle'].by_key()['color']
     size = result['size_px']
     for i, (n, rows) in enumerate(result['error_vs_f0_centred_pass1'].items()):
@@ -738,31 +960,75 @@ def plot_folder(result: dict, grid: dict[str, np.ndarray], path: Path) -> None:
               ylim=(0, 1), title=f'localisation vs th, f0 = {loc["f0_px"]:g} px, pass 1 '
               f'(Figs. 2.7b, 2.10a)\n{loc["images"]} photos pasted on other photos')
     ax[1].legend(fontsize=7)
+    lf = result.get('localisation_vs_f0')
+    if lf is not None:
+        fov = [i for i, f in enumerate(lf['f0_px']) if f != 'unfoveated']
+        x = [lf['f0_px'][i] for i in fov]
+        un = lf['f0_px'].index('unfoveated') if 'unfoveated' in lf['f0_px'] else None
+        for i, (n, e) in enumerate(lf['error'].items()):
+            c = colours[i % len(colours)]
+            for name, style in (('centred', '-o'), ('off_centre', '--s')):
+                ax[4].plot(x, [e[name][j] for j in fov], style, color=c, ms=4,
+                           label=f'{n} {name.replace("_", "-")}')
+            if un is not None:
+                ax[4].plot([size * 1.04 ** (i - 1)], [e['centred'][un]], '*', color=c, ms=11,
+                           label=f'{n} unfoveated')
+        ticks = x + ([size] if un is not None else [])
+        ax[4].set_xscale('log')                  # before the ticks (set_xscale resets them)
+        ax[4].set_xticks(ticks, [f'{v:g}' for v in x] + (['unfov.'] if un is not None else []))
+        ax[4].minorticks_off()
+        ax[4].set(xlabel=f'fovea size f0 [px of the {size}x{size} image]',
+                  ylabel='localisation error (fraction with no top-5 box IoU >= 0.5)',
+                  ylim=(0, 1), title=f'localisation error vs f0 at th {lf["threshold"]:g}, pass 1 '
+                  f'(Fig. 2.10b)\n{lf["images"]} photos pasted on other photos')
+        ax[4].legend(fontsize=7, ncol=3, loc='lower center')
+    else:
+        ax[4].text(0.5, 0.5, 'localisation vs f0 not computed\n(--loc-vs-f0-only)',
+                   ha='center', va='center', transform=ax[4].transAxes)
+        ax[4].set_axis_off()
     sp = result['second_pass']
-    rows = [r for r in sp['by_f0'] if r['f0_px'] != 'unfoveated']
-    x = [r['f0_px'] for r in rows]
-    for name, c in (('centred', 'tab:blue'), ('off_centre', 'tab:red')):
-        for p, style in (('pass1', '--o'), ('pass2', '-s')):
-            ax[2].plot(x, [r[name][p]['top1_error'] for r in rows], style, color=c, ms=4,
-                       label=f'{name.replace("_", "-")}, pass {p[-1]}')
-    ax[2].axhline(sp['by_f0'][-1]['centred']['pass1']['top1_error'], color='k', ls=':',
-                  lw=0.8, label='unfoveated')
-    ax[2].set(xlabel='fovea size f0 [px]', ylabel='top-1 error', ylim=(0, 1), xscale='log',
-              title=f'pass 1 vs pass 2, th = 0.7 (Fig. 2.9)\n{sp["network"]}, '
-                    f'{sp["images"]} photos, {sp["grid"]} grid')
-    ax[2].set_xticks(x, [f'{v:g}' for v in x])
-    ax[2].minorticks_off()
-    ax[2].legend(fontsize=7)
+    # Fig. 2.9, one panel per initial fixation kind: colour = network, dashed open circles =
+    # pass 1, solid filled squares = pass 2, star = unfoveated (pass 1 = pass 2 there)
+    order = [n['name'] for n in result['networks']]
+    for k, (name, title) in enumerate((
+            ('centred', f'centred fixation, {sp["images"]} photos'),
+            ('off_centre', f'off-centre: 8 other {sp["grid"]}-grid points'))):
+        a = ax9[k]
+        for n, sec in second_pass_networks(result).items():
+            c = colours[order.index(n) % len(colours)] if n in order else 'k'
+            rows = [r for r in sec['by_f0'] if r['f0_px'] != 'unfoveated']
+            x = [r['f0_px'] for r in rows]
+            a.plot(x, [r[name]['pass1']['top1_error'] for r in rows], '--o', color=c, ms=5,
+                   mfc='none', label=f'{n} pass 1')
+            a.plot(x, [r[name]['pass2']['top1_error'] for r in rows], '-s', color=c, ms=4,
+                   label=f'{n} pass 2')
+            un = [r for r in sec['by_f0'] if r['f0_px'] == 'unfoveated']
+            if un:
+                a.plot([size], [un[0]['centred']['pass1']['top1_error']], '*', color=c, ms=10,
+                       label=f'{n} unfoveated')
+        a.set_xscale('log')
+        a.set_xticks(x + [size], [f'{v:g}' for v in x] + ['unfov.'])
+        a.minorticks_off()
+        a.set(xlabel=f'fovea size f0 [px of {size}x{size}]', ylim=(0, 1))
+        a.set_title(f'pass 1 vs pass 2, th = 0.7 (Fig. 2.9)\n{title}', fontsize=9.5)
+        a.grid(alpha=0.3)
+    ax9[0].set_ylabel('top-1 error (fraction of cases)')
+    ax9[1].tick_params(labelleft=False)
+    ax9[0].legend(fontsize=7, ncol=3, loc='upper center', bbox_to_anchor=(1.04, -0.13),
+                  title='colour: network; dashed, open o: pass 1; solid, filled square: pass 2; '
+                        'star: unfoveated', title_fontsize=7)
     both = np.hstack([grid['pass1'], np.full((grid['pass1'].shape[0], 1), np.nan), grid['pass2']])
     im = ax[3].imshow(both, cmap='gray', vmin=0, vmax=max(float(np.nanmax(both)), 0.05))
     for (r, c), val in np.ndenumerate(both):
         if np.isfinite(val):
             ax[3].text(c, r, f'{val:.2f}', ha='center', va='center', color='tab:orange')
-    ax[3].set(title=f'top-1 error vs initial fixation (Fig. 2.8)\npass 1 | pass 2, mean over '
-                    f'f0 {", ".join(f"{v:g}" for v in x)}', xticks=[], yticks=[])
-    fig.colorbar(im, ax=ax[3], fraction=0.03, label='top-1 error')
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    ax[3].set(title=f'top-1 error vs initial fixation (Fig. 2.8), {sp["network"]}\npass 1 | '
+                    f'pass 2, mean over f0 {", ".join(f"{v:g}" for v in x)}', xticks=[],
+              yticks=[])
+    ax[3].set_anchor('E')                     # the grids next to their colour bar
+    fig.colorbar(im, ax=ax[3], fraction=0.03, shrink=0.6, label='top-1 error')
+    fig.tight_layout(h_pad=2.5)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
