@@ -467,7 +467,12 @@ def main() -> None:
         areas = ('centres',)
     elif args.sim:
         frames = args.frames or 300
-        seq = render_sim_sequence(args.cache, args.seed, args.people, frames, args.fps)
+        # rendered in a child process: the GL threads of a renderer in this one would leave
+        # their locks held in the workers that --jobs forks, which then wait on them for ever
+        from multiprocessing import get_context
+        with get_context('spawn').Pool(1) as pool:
+            seq = pool.apply(render_sim_sequence,
+                             (args.cache, args.seed, args.people, frames, args.fps))
         name = args.name or 'sim_pedestrians'
         result = motchallenge_grid(seq, args.k_max, args.s_max, args.trials, budget_ms,
                                    args.new_tracks, period, areas, args.iterations, args.jobs)
