@@ -596,11 +596,10 @@ def run_folder(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     if args.pass2_only and args.pass2_models is None:       # the networks not yet in the JSON
-        if not path.exists():
-            print(f'foveated_recognition: --pass2-only needs {path} (run without it first)',
-                  file=sys.stderr)
+        existing = read_existing(path, '--pass2-only')
+        if existing is None:
             return 2
-        have = set(second_pass_networks(json.loads(path.read_text())))
+        have = set(second_pass_networks(existing))
         args.pass2_models = [n for n, name in enumerate(names) if name not in have]
         if not args.pass2_models:
             print(f'foveated_recognition: {path} already holds the second pass of every network '
@@ -700,8 +699,7 @@ def run_folder(args: argparse.Namespace) -> int:
     result['jobs'] = args.jobs
     args.out.mkdir(parents=True, exist_ok=True)
     result['protocol'] = protocol_folder(result, sum(cpu.values()))
-    path.write_text(json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
-    plot_folder(result, folder_grid(result), path.with_suffix('.png'))
+    write_folder_result(path, result)
 
     print(f'{len(items)} images, {len(tasks)} tasks in {wall:.0f} s wall, '
           f'CPU {sum(cpu.values()):.0f} s ({result["cpu_s"]})')
@@ -792,11 +790,9 @@ def merge_second_pass(path: Path, by_net: dict[str, dict], cpu: dict[str, float]
     (second_pass_by_network; second_pass, read by other code, stays), after checking that they
     were made with the same images, grid, fixations, f0s, threshold and top-k; add their CPU
     time, redo the protocol, rewrite JSON and plot."""
-    if not path.exists():
-        print(f'foveated_recognition: --pass2-only needs {path} (run without it first)',
-              file=sys.stderr)
+    result = read_existing(path, '--pass2-only')
+    if result is None:
         return 2
-    result = json.loads(path.read_text())
     have = [n['name'] for n in result['networks']]
     old = result['second_pass']
     key = lambda sec: ([sec[k] for k in SECOND_PASS_SAME],  # noqa: E731
@@ -827,8 +823,7 @@ def merge_second_pass(path: Path, by_net: dict[str, dict], cpu: dict[str, float]
     cpu_s.update({k: round(v, 1) for k, v in cpu.items()})
     out['cpu_s'] = cpu_s
     out['protocol'] = protocol_folder(out, sum(cpu_s.values()))
-    path.write_text(json.dumps(rounded(out), indent=1, allow_nan=False) + '\n')
-    plot_folder(out, folder_grid(out), path.with_suffix('.png'))
+    write_folder_result(path, out)
     print_second_pass({n: merged[n] for n in by_net})
     print(f'second pass of {", ".join(by_net)}: {sum(cpu.values()):.0f} s CPU ({cpu}), '
           f'{wall:.0f} s wall -> {path}')
@@ -847,11 +842,9 @@ def merge_loc_vs_f0(path: Path, section: dict, cpu_s: float, names: list[str],
                     f0s: list[float]) -> int:
     """--loc-vs-f0-only: put the localisation-vs-f0 section into the existing result (same
     networks, f0 list and collages), add its CPU time, redo the protocol, rewrite JSON and plot."""
-    if not path.exists():
-        print(f'foveated_recognition: --loc-vs-f0-only needs {path} (run without it first)',
-              file=sys.stderr)
+    result = read_existing(path, '--loc-vs-f0-only')
+    if result is None:
         return 2
-    result = json.loads(path.read_text())
     have = [n['name'] for n in result['networks']]
     old_f0s = [r['f0_px'] for r in next(iter(result['error_vs_f0_centred_pass1'].values()))]
     if have != names or old_f0s != [*f0s, 'unfoveated'] or \
@@ -863,11 +856,25 @@ def merge_loc_vs_f0(path: Path, section: dict, cpu_s: float, names: list[str],
     result['localisation_vs_f0'] = section
     result['cpu_s']['loc_vs_f0'] = round(cpu_s, 1)
     result['protocol'] = protocol_folder(result, sum(result['cpu_s'].values()))
-    path.write_text(json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
-    plot_folder(result, folder_grid(result), path.with_suffix('.png'))
+    write_folder_result(path, result)
     print_loc_vs_f0(section)
     print(f"localisation vs f0: {cpu_s:.0f} s CPU, {section['wall_s']:.0f} s wall -> {path}")
     return 0
+
+
+def read_existing(path: Path, flag: str) -> dict | None:
+    """The result JSON a merging run (flag) adds to; None, after one line, when absent."""
+    if not path.exists():
+        print(f'foveated_recognition: {flag} needs {path} (run without it first)',
+              file=sys.stderr)
+        return None
+    return json.loads(path.read_text())
+
+
+def write_folder_result(path: Path, result: dict) -> None:
+    """A folder result as strict JSON (no NaN) and its plot beside it."""
+    path.write_text(json.dumps(rounded(result), indent=1, allow_nan=False) + '\n')
+    plot_folder(result, folder_grid(result), path.with_suffix('.png'))
 
 
 def folder_grid(result: dict) -> dict[str, np.ndarray]:
