@@ -589,12 +589,15 @@ def plot_fig314(results: dict, out: Path, tag: str) -> None:
     T = results['setting']['T']
     ucb100 = {k: v for k, v in cfgs.items() if v['sensor'] in ('logpolar', 'cartesian')
               and v['acquisition'] == 'ucb' and v['alpha'] == 100.0}
+    def fov_of(v: dict) -> float:
+        return float(v.get('hfov_deg', HFOV))
+
     sensors = sorted((v for v in ucb100.values() if v['bias'] == 'unbiased'),
-                     key=lambda v: (float(v.get('hfov_deg', HFOV)), v['sensor'] != 'logpolar'))
-    biases = sorted((v for v in ucb100.values() if v['sensor'] == 'logpolar' and (
-        v['bias'] != 'unbiased' or any(w['bias'] != 'unbiased' and w.get('hfov_deg', HFOV) ==
-                                       v.get('hfov_deg', HFOV) for w in ucb100.values()))),
-                    key=lambda v: (-float(v.get('hfov_deg', HFOV)), BIAS_NAMES.index(v['bias'])))
+                     key=lambda v: (fov_of(v), v['sensor'] != 'logpolar'))
+    bias_fovs = {fov_of(v) for v in ucb100.values() if v['bias'] != 'unbiased'}
+    biases = sorted((v for v in ucb100.values()          # with the unbiased run beside them
+                     if v['sensor'] == 'logpolar' and fov_of(v) in bias_fovs),
+                    key=lambda v: (-fov_of(v), BIAS_NAMES.index(v['bias'])))
     if not sensors:
         return
     fig, axes = plt.subplots(1, 4, figsize=(19, 6.4))
@@ -602,7 +605,7 @@ def plot_fig314(results: dict, out: Path, tag: str) -> None:
     for col, (group, what) in enumerate(((sensors, 'sensors'), (biases, 'biases'))):
         a_found, a_li = axes[2 * col], axes[2 * col + 1]
         for v in group:
-            fov = float(v.get('hfov_deg', HFOV))
+            fov = fov_of(v)
             if what == 'sensors':          # colour: sensor; solid 85.4 deg, dashed 135 deg
                 c = SERIES_COLOURS[(v['sensor'], HFOV)]
                 label = (f"{'log-polar' if v['sensor'] == 'logpolar' else 'Cartesian'}, "
@@ -611,7 +614,7 @@ def plot_fig314(results: dict, out: Path, tag: str) -> None:
             else:
                 c = BIAS_COLOURS[v['bias']]
                 label = f"{v['bias']}, {fov:g} deg"
-                ls = '-' if fov == max(float(w.get('hfov_deg', HFOV)) for w in group) else ':'
+                ls = '-' if fov == max(bias_fovs) else ':'
             a_found.step(t, on_target_by(v['runs'], T), where='post', color=c, ls=ls, lw=1.6,
                          label=f"{label} ({len(v['runs'])} runs)")
             li = np.asarray([r['LI'] for r in v['runs']], float)
