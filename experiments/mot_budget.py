@@ -4,7 +4,8 @@
     .venv/bin/python experiments/mot_budget.py --motchallenge ../shared/data/mot17-mini
     .venv/bin/python experiments/mot_budget.py --synthetic [--frames 150]
     .venv/bin/python experiments/mot_budget.py --sim --new-tracks periodic --trials 20 \
-        --area centres pixels --iterations 200 --jobs 2   # the run in docs/results.md
+        --s-max 0.1 0.2 0.4 0.7 1.0 --area centres pixels --iterations 200 --jobs 2
+        # the run in docs/results.md (9519 s CPU)
 
 For every K_max in {1, 2, 3, 4} and S_max in [0.1, 1.0] the planner tracks the sequences
 ``--trials`` times (different MCTS seeds; the thesis ran 100), against the full-frame

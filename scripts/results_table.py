@@ -847,8 +847,8 @@ COMMANDS = {
                           'worker processes)',
     'cylinder_pipeline.json': 'experiments/cylinder_pipeline.py',
     'cylinder_robustness.json': 'experiments/cylinder_robustness.py [--jobs N]',
-    SIM: 'experiments/mot_budget.py --sim --new-tracks periodic --trials 20 --area centres '
-         'pixels --iterations 200 --jobs 2',
+    SIM: 'experiments/mot_budget.py --sim --new-tracks periodic --trials 20 --s-max 0.1 0.2 '
+         '0.4 0.7 1.0 --area centres pixels --iterations 200 --jobs 2',
     MOT: 'experiments/mot_budget.py --motchallenge ../shared/data/mot17-mini --trials 20 '
          '--area centres pixels --iterations 200 --jobs 2',
 }
