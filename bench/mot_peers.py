@@ -4,6 +4,7 @@
     .venv/bin/python bench/mot_peers.py [--mot ../shared/data/mot17-mini] [--sim-seeds 0 1]
         [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
         [--birth-share B] [--report-misses N] [--scale-accel-std A] [--init-scale-velocity-std V]
+        [--occluded-share O]
 
 Peer: ByteTrack (``trackers.ByteTrackTracker``, Roboflow's maintained re-implementation; the
 ``supervision`` package dropped its own ByteTrack in 0.27) fed with OpenCV's HOG people
@@ -272,6 +273,8 @@ def main() -> None:
     p.add_argument('--period', type=int, default=DEPLOYED['full_frame_period'])
     p.add_argument('--report-misses', type=int, default=DEPLOYED['report_misses'])
     p.add_argument('--birth-score', type=float, default=DEPLOYED['birth_score'])
+    p.add_argument('--occluded-share', type=float, default=DEPLOYED['occluded_share'],
+                   help='occlusion reasoning share (0: none; default: the deployed one)')
     p.add_argument('--scale-accel-std', type=float, default=DEPLOYED['scale_accel_std'],
                    help='relative scale acceleration std per frame^2 of the motion model '
                         '(default: the deployed one)')
@@ -286,6 +289,7 @@ def main() -> None:
                                         max_iterations=args.budget_iterations, seed=args.seed),
                           full_frame_period=args.period, birth_share=args.birth_share,
                           report_misses=args.report_misses, birth_score=args.birth_score,
+                          occluded_share=args.occluded_share or None,
                           init_scale_velocity_std=args.init_scale_velocity_std,
                           motion=replace(MotionModel(), scale_accel_std=args.scale_accel_std))
     cfg = replace(cfg, planner=replace(cfg.planner, area=args.area))

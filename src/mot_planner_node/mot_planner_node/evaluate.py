@@ -210,7 +210,7 @@ def resolve_protocol(args: argparse.Namespace) -> argparse.Namespace:
     for name, key in (('new_tracks', 'new_tracks'), ('area', 'area'),
                       ('period', 'full_frame_period'), ('birth_share', 'birth_share'),
                       ('report_misses', 'report_misses'), ('birth_score', 'birth_score'),
-                      ('keep_lost', 'keep_lost')):
+                      ('keep_lost', 'keep_lost'), ('occluded_share', 'occluded_share')):
         if getattr(args, name, None) is None:
             setattr(args, name, base[key])
     return args
@@ -231,6 +231,7 @@ def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
                          new_tracks=args.new_tracks,
                          full_frame_period=args.period, birth_share=args.birth_share,
                          birth_score=args.birth_score, keep_lost=args.keep_lost,
+                         occluded_share=args.occluded_share or None,
                          report_misses=(None if args.report_misses is None
                                         or args.report_misses < 0 else args.report_misses),
                          init_scale_velocity_std=float(
@@ -389,6 +390,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--keep-lost', type=int, default=None,
                    help='frames a deleted track is remembered and can come back under its id '
                         f"(default {DEPLOYED['keep_lost']} deployed, 0 thesis)")
+    p.add_argument('--occluded-share', type=float, default=None,
+                   help='a track whose box a nearer track covers by at least this share is '
+                        'not looked for and not missed (0: no occlusion reasoning; default '
+                        f"{DEPLOYED['occluded_share']} deployed, none thesis)")
     p.add_argument('--report-misses', type=int, default=None,
                    help='report a track while it has at most this many consecutive misses '
                         f"(-1: always; default {DEPLOYED['report_misses']} deployed, always "

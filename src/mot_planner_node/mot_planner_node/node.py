@@ -174,6 +174,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param('keep_lost', DEPLOYED['keep_lost'], 'Frames a deleted track is remembered; a '
           'detection in its gate brings it back under its id (0: never), in [0, 1000].',
           '[0, 1000]'),
+    Param('occluded_share', DEPLOYED['occluded_share'], 'A track whose box is covered by at '
+          'least this share by a nearer track\'s is occluded: no region is spent on it and it '
+          'is not missed while hidden (0: no occlusion reasoning), in [0, 1].', '[0, 1]'),
     Param('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in '
           '[-10, 10].', '[-10, 10]'),
     # step 8 from 8: the multiples of 8 (the HOG block stride)
@@ -211,7 +214,7 @@ PARAMETERS: tuple[Param, ...] = (
 )
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
 TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
-                    'keep_lost')
+                    'keep_lost', 'occluded_share')
 DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
 PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
 TF_HISTORY_S = 2.0
@@ -266,7 +269,8 @@ def track_settings(params: dict[str, Any]) -> dict[str, Any]:
             'birth_share': float(params['birth_share']),
             'birth_score': float(params['birth_score']),
             'report_misses': None if misses < 0 else misses,
-            'keep_lost': int(params['keep_lost'])}
+            'keep_lost': int(params['keep_lost']),
+            'occluded_share': float(params['occluded_share']) or None}
 
 
 def planner_config(params: dict[str, Any]) -> PlannerConfig:

@@ -262,3 +262,54 @@ def test_hog_runs_on_plain_images() -> None:
     assert tiny.boxes.shape == (0, 4)
     with pytest.raises(ValueError, match='empty'):
         hog.detect(np.zeros((0, 10, 3), np.uint8))
+
+
+def crossing(n_frames: int = 70) -> list[np.ndarray]:
+    """A near person standing still and a far one walking behind them, left to right."""
+    near = np.array([320.0 - 0.41 * 200 / 2, 420.0 - 200, 0.41 * 200, 200.0])
+    out = []
+    for t in range(n_frames):
+        cx = 180.0 + 4.0 * t
+        out.append(np.array([near, [cx - 0.41 * 120 / 2, 330.0 - 120, 0.41 * 120, 120.0]]))
+    return out
+
+
+@pytest.mark.parametrize('share', [None, 0.3])
+def test_a_person_behind_another_is_not_looked_for_and_keeps_its_id(share) -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0, jitter=0.0)
+    cfg = TrackerConfig(mode='planner', new_tracks='none', max_misses=2, occluded_share=share,
+                        planner=PlannerConfig(k_max=2, s_max=1.0, budget_ms=None,
+                                              max_iterations=40, seed=0))
+    tracker = MotTracker(det, cfg)
+    frames = crossing()
+    hidden = [t for t, b in enumerate(frames) if visibility(b)[1] < det.min_visible]
+    assert 8 <= len(hidden) <= 30                          # the far one is hidden for a while
+    behind_attended, ids_after = [], []
+    for t, boxes in enumerate(frames):
+        det.set_truth(boxes)
+        r = tracker.step(BLANK)
+        if t in hidden[2:]:
+            behind_attended.append(2 in r.attended_ids.tolist())
+        if t > hidden[-1] + 5:
+            ids_after.append(sorted(r.ids.tolist()))
+    if share is None:       # the thesis's model: looked for where it cannot be seen, deleted
+        assert any(behind_attended[:3]) and ids_after[-1] == [1]
+    else:                   # not looked for, not missed, found again as itself
+        assert not any(behind_attended)
+        assert all(ids == [1, 2] for ids in ids_after)
+        assert tracker.occluded(tracker.tracks.x).tolist() == [False, False]
+
+
+def test_occlusion_is_judged_by_the_nearer_box() -> None:
+    tracker = MotTracker(SimulatedDetector(), TrackerConfig(occluded_share=0.5))
+    win = HOG_SHRINK.invert(np.array([[300, 150, 82, 200],      # near (scale 200/97)
+                                      [310, 200, 49, 120],      # far, inside the near box
+                                      [500, 200, 49, 120]]))    # far, in the open
+    g = tracker.detector.geometry
+    x = np.zeros((3, 6))
+    x[:, 0], x[:, 1] = win[:, 0] + win[:, 2] / 2, win[:, 1] + win[:, 3] / 2
+    x[:, 2] = win[:, 3] / g.window_h
+    assert tracker.occluded(x).tolist() == [False, True, False]
+    assert not MotTracker(SimulatedDetector(), TrackerConfig()).occluded(x).any()
+    with pytest.raises(ValueError, match='occluded_share'):
+        TrackerConfig(occluded_share=0.0)

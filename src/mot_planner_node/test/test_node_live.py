@@ -260,11 +260,12 @@ def test_bad_frames_size_change_and_parameters(graph, capfd) -> None:
     # the track births and reporting keep the tracks as well (-1: report a track while it lives)
     assert all(r.successful for r in mot.set_parameters([
         Parameter('birth_share', value=0.4), Parameter('report_misses', value=-1),
-        Parameter('keep_lost', value=3), Parameter('birth_score', value=0.5)]))
+        Parameter('keep_lost', value=3), Parameter('birth_score', value=0.5),
+        Parameter('occluded_share', value=0.0)]))
     cfg = mot._tracker.cfg
     assert set(mot._tracker.tracks.ids.tolist()) == ids
-    assert (cfg.birth_share, cfg.report_misses, cfg.keep_lost, cfg.birth_score) == (
-        0.4, None, 3, 0.5)
+    assert (cfg.birth_share, cfg.report_misses, cfg.keep_lost, cfg.birth_score,
+            cfg.occluded_share) == (0.4, None, 3, 0.5, None)     # 0: no occlusion reasoning
     assert not mot.set_parameters([Parameter('birth_share', value=0.99)])[0].successful
     assert not mot.set_parameters([Parameter('win_stride', value=12)])[0].successful
 

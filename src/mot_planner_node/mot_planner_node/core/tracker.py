@@ -29,6 +29,14 @@ dropped on their first miss. A track is deleted when it has been missed more tha
 leaves the image, or when its position uncertainty exceeds ``max_std_frac`` of its window
 size (it can no longer be found).
 
+Occlusion (``occluded_share``, an extension: the thesis's observation model has no
+occlusion): a track whose predicted box is covered by at least that share by the box of a
+nearer track (a larger scale: a person closer to the camera) is not expected to be detected.
+The planner does not spend a region on it, a processed frame does not count it as missed, and
+it keeps being predicted (and reported) until it comes out from behind the other person.
+Without it, people who cross behind others are looked for where they cannot be seen, deleted
+after ``max_misses`` misses and wait for the next full frame to be found again.
+
 Ego-motion: when the camera rotated since the previous frame, ``step(image, homography=H)``
 (``H = K R K^-1``, :mod:`.egomotion`) first moves every belief into the current camera, then
 predicts; without it a head movement makes every target jump out of its search region.
@@ -93,6 +101,8 @@ class TrackerConfig:
     extra_detector_std: detector noise beyond quantization, fraction of the window [u, v, s].
     new_track_iou: an unmatched detection overlapping a track's window by more than this
         does not start a new track.
+    occluded_share: a track whose object box is covered by at least this share by a nearer
+        track's is occluded (module docstring); None: no occlusion reasoning (thesis).
     """
 
     mode: Literal['planner', 'full'] = 'planner'
@@ -112,6 +122,7 @@ class TrackerConfig:
     quantization: str = 'worst'
     extra_detector_std: tuple[float, float, float] = (0.05, 0.05, 0.05)
     new_track_iou: float = 0.3
+    occluded_share: float | None = None
     motion: MotionModel = field(default_factory=MotionModel)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
 
@@ -131,6 +142,9 @@ class TrackerConfig:
             problems.append('confirm_hits and max_misses must be >= 1')
         if self.max_std_frac <= 0:
             problems.append(f'max_std_frac must be > 0, got {self.max_std_frac}')
+        if self.occluded_share is not None and not 0.0 < self.occluded_share <= 1.0:
+            problems.append(f'occluded_share must be in (0, 1] or None, got '
+                            f'{self.occluded_share}')
         if problems:
             raise ValueError('TrackerConfig: ' + '; '.join(problems))
 
@@ -139,19 +153,21 @@ class TrackerConfig:
 #: births paid from the S_max budget, the constraint counting the pixels the detector reads
 #: (at the resolution it reads them), births only from confident detections (birth_score is
 #: on HOG's SVM margin: another detector plug-in needs its own), a track reported through one
-#: missed frame, and a person's size that changes slowly (scale acceleration and a new track's
+#: missed frame, a person's size that changes slowly (scale acceleration and a new track's
 #: scale velocity 5x and 4x below the thesis-protocol values: at S_max 0.1 the size uncertainty
 #: of a person not looked at made the search regions too large to afford; tuned on the
-#: simulated street's seeds 0-1, docs/mot_planner.md).
+#: simulated street's seeds 0-1, docs/mot_planner.md), and occlusion reasoning (people behind
+#: others are not looked for and not missed).
 DEPLOYED: dict[str, Any] = {
     'new_tracks': 'budget', 'area': 'scaled', 'full_frame_period': 5, 'birth_share': 0.25,
     'report_misses': 1, 'birth_score': 0.8, 'keep_lost': 10, 'scale_accel_std': 0.002,
-    'init_scale_velocity_std': 0.005}
+    'init_scale_velocity_std': 0.005, 'occluded_share': 0.7}
 #: The thesis protocol (section 5.4): tracks only from the first frame, the centre-box area.
 THESIS: dict[str, Any] = {
     'new_tracks': 'none', 'area': 'centres', 'full_frame_period': 30, 'birth_share': 0.15,
     'report_misses': None, 'birth_score': -np.inf, 'keep_lost': 0,
-    'scale_accel_std': MotionModel().scale_accel_std, 'init_scale_velocity_std': 0.02}
+    'scale_accel_std': MotionModel().scale_accel_std, 'init_scale_velocity_std': 0.02,
+    'occluded_share': None}
 PROTOCOLS = {'deployed': DEPLOYED, 'thesis': THESIS}
 
 
@@ -368,20 +384,24 @@ class MotTracker:
             x, P = predict(tracks.x, tracks.P, cfg.motion)
             tracks = replace(tracks, x=x, P=P)
         plan_s, iterations = 0.0, 0
+        occluded = self.occluded(tracks.x)
         if full:
             regions = full_frame_region(size, self.detector.geometry)
             attended = np.ones(len(tracks), bool)
             det_regions = None
         else:
             track_budget = (1.0 - cfg.birth_share) * credit
-            plan = self.planner.plan(tracks.x, tracks.P, size,
+            visible = np.flatnonzero(~occluded)            # the planner's targets
+            plan = self.planner.plan(tracks.x[visible], tracks.P[visible], size,
                                      track_budget if budgeted and cfg.planner.area in READ_MODES
                                      else None)
             plan_s, iterations = plan.plan_s, plan.iterations
-            attended = plan.action.copy()
+            chosen = plan.action.copy()
             if budgeted:                                   # S_max binds the pixels read
-                attended = self._within(plan, attended, track_budget, size)
-            regions = plan.regions[attended]
+                chosen = self._within(plan, chosen, track_budget, size)
+            regions = plan.regions[chosen]
+            attended = np.zeros(len(tracks), bool)
+            attended[visible[chosen]] = True
             if cfg.new_tracks == 'sweep':
                 regions = np.concatenate([regions, self._sweep_region(size)])
             det_regions = regions
@@ -404,7 +424,7 @@ class MotTracker:
         hits[matched] += 1
         misses[matched] = 0
         missed = attended & ~matched
-        misses[missed] += 1
+        misses[missed & ~occluded] += 1                   # not seen behind someone: no miss
         confirmed = tracks.confirmed | (hits >= cfg.confirm_hits)
         tracks = Tracks(tracks.ids, x, P, hits, misses, confirmed)
         # Tentative tracks die on their first miss.
@@ -475,6 +495,24 @@ class MotTracker:
         out = np.zeros_like(attended)
         out[keep] = True
         return out
+
+    def occluded(self, x: FloatArray) -> BoolArray:
+        """(K,) whether each of the states x (K, >= 3) is occluded: its object box covered by
+        at least ``occluded_share`` by the box of one track with a larger scale (nearer);
+        all False without ``occluded_share``."""
+        share = self.cfg.occluded_share
+        K = x.shape[0]
+        if share is None or K < 2:
+            return np.zeros(K, bool)
+        b = self.object_boxes(x)
+        x0 = np.maximum(b[:, None, 0], b[None, :, 0])
+        x1 = np.minimum(b[:, None, 0] + b[:, None, 2], b[None, :, 0] + b[None, :, 2])
+        y0 = np.maximum(b[:, None, 1], b[None, :, 1])
+        y1 = np.minimum(b[:, None, 1] + b[:, None, 3], b[None, :, 1] + b[None, :, 3])
+        inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)      # (K, K)
+        cover = inter / np.maximum(b[:, 2] * b[:, 3], 1e-12)[:, None]
+        nearer = x[None, :, 2] > x[:, None, 2]                              # j nearer than k
+        return np.asarray((np.where(nearer, cover, 0.0) >= share).any(axis=1), dtype=bool)
 
     def _aged_lost(self, homography: FloatArray | None) -> tuple[Tracks, IntArray]:
         """The lost tracks one frame on (moved by the camera's rotation, predicted, aged)."""
