@@ -89,8 +89,8 @@ class Detector(Protocol):
         ...
 
 
-def box_iou(a: FloatArray, b: FloatArray) -> FloatArray:
-    """IoU matrix (n, m) of x, y, w, h boxes."""
+def box_intersection(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Intersection areas (n, m) of x, y, w, h boxes a (n, 4) and b (m, 4)."""
     a = np.asarray(a, dtype=float).reshape(-1, 4)
     b = np.asarray(b, dtype=float).reshape(-1, 4)
     ax1, ay1 = a[:, 0] + a[:, 2], a[:, 1] + a[:, 3]
@@ -99,7 +99,14 @@ def box_iou(a: FloatArray, b: FloatArray) -> FloatArray:
                  0, None)
     ih = np.clip(np.minimum(ay1[:, None], by1[None]) - np.maximum(a[:, None, 1], b[None, :, 1]),
                  0, None)
-    inter = iw * ih
+    return iw * ih
+
+
+def box_iou(a: FloatArray, b: FloatArray) -> FloatArray:
+    """IoU matrix (n, m) of x, y, w, h boxes."""
+    a = np.asarray(a, dtype=float).reshape(-1, 4)
+    b = np.asarray(b, dtype=float).reshape(-1, 4)
+    inter = box_intersection(a, b)
     union = (a[:, 2] * a[:, 3])[:, None] + (b[:, 2] * b[:, 3])[None] - inter
     return np.where(union > 0, inter / np.maximum(union, 1e-12), 0.0)
 

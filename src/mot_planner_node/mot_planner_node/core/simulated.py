@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from .detector import HOG_SHRINK, BoxShrink, Detections, check_image
+from .detector import HOG_SHRINK, BoxShrink, Detections, box_intersection, check_image
 from .observation import DetectorGeometry
 from .regions import S_HI, S_LO, X0, X1, Y0, Y1
 
@@ -121,12 +121,9 @@ def visibility(boxes: FloatArray) -> FloatArray:
     n = boxes.shape[0]
     if n == 0:
         return np.zeros(0)
-    x1, y1 = boxes[:, 0] + boxes[:, 2], boxes[:, 1] + boxes[:, 3]
-    x0, y0 = boxes[:, 0], boxes[:, 1]
-    iw = np.clip(np.minimum(x1[:, None], x1[None]) - np.maximum(x0[:, None], x0[None]), 0, None)
-    ih = np.clip(np.minimum(y1[:, None], y1[None]) - np.maximum(y0[:, None], y0[None]), 0, None)
+    y1 = boxes[:, 1] + boxes[:, 3]
     nearer = y1[None, :] > y1[:, None]
-    covered = np.where(nearer, iw * ih, 0.0).sum(axis=1)
+    covered = np.where(nearer, box_intersection(boxes, boxes), 0.0).sum(axis=1)
     return 1.0 - np.minimum(covered / np.maximum(boxes[:, 2] * boxes[:, 3], 1e-9), 1.0)
 
 

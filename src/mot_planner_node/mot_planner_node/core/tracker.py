@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .association import associate, gate_threshold
-from .detector import Detections, Detector, box_iou, check_image
+from .detector import Detections, Detector, box_intersection, box_iou, check_image
 from .egomotion import warp_beliefs
 from .kalman import STATE_DIM, MotionModel, predict, update
 from .observation import ObservationModel
@@ -505,12 +505,7 @@ class MotTracker:
         if share is None or K < 2:
             return np.zeros(K, bool)
         b = self.object_boxes(x)
-        x0 = np.maximum(b[:, None, 0], b[None, :, 0])
-        x1 = np.minimum(b[:, None, 0] + b[:, None, 2], b[None, :, 0] + b[None, :, 2])
-        y0 = np.maximum(b[:, None, 1], b[None, :, 1])
-        y1 = np.minimum(b[:, None, 1] + b[:, None, 3], b[None, :, 1] + b[None, :, 3])
-        inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)      # (K, K)
-        cover = inter / np.maximum(b[:, 2] * b[:, 3], 1e-12)[:, None]
+        cover = box_intersection(b, b) / np.maximum(b[:, 2] * b[:, 3], 1e-12)[:, None]
         nearer = x[None, :, 2] > x[:, None, 2]                              # j nearer than k
         return np.asarray((np.where(nearer, cover, 0.0) >= share).any(axis=1), dtype=bool)
 
