@@ -26,7 +26,8 @@ data itself, generous to the peer), with the grid point its defaults correspond 
 Data: ``--mot`` MOTChallenge sequences (mot17-mini: seven MOT17 sequences of 4-8 frames), and
 the simulator's pedestrians scene rendered to MOTChallenge folders (experiments/mot_budget.py
 ``render_sim_sequence``: left eye, head at rest, 640x480, 30 frames/s, 6 walkers, one
-sequence per ``--sim-seeds`` value; needs MuJoCo). Full-frame HOG detections and their CPU
+sequence per ``--sim-seeds`` value; ``--sim-area`` widens where they walk so that people
+leave the view and come back; needs MuJoCo). Full-frame HOG detections and their CPU
 time are cached under ``--cache`` (experiments/cache/, not in git).
 
 Measured: per group and per sequence MOTA, IDF1, ID switches, MOTP; the share of each frame
@@ -249,7 +250,12 @@ def sim_sequences(args: argparse.Namespace) -> list[Sequence]:
     sys.path.insert(0, str(ROOT / 'experiments'))
     try:
         from mot_budget import render_sim_sequence
-        paths = [render_sim_sequence(args.cache, s, args.sim_people, args.sim_frames, 30.0)
+        area = None
+        if args.sim_area:
+            x0, x1, y0, y1 = args.sim_area
+            area = ((x0, x1), (y0, y1))
+        paths = [render_sim_sequence(args.cache, s, args.sim_people, args.sim_frames, 30.0,
+                                     area=area)
                  for s in args.sim_seeds]
     except ImportError as exc:
         print(f'mot_peers: no simulated sequences ({exc})', file=sys.stderr)
@@ -264,6 +270,9 @@ def main() -> None:
     p.add_argument('--sim-seeds', type=int, nargs='*', default=[0, 1])
     p.add_argument('--sim-frames', type=int, default=300)
     p.add_argument('--sim-people', type=int, default=6)
+    p.add_argument('--sim-area', type=float, nargs=4, metavar=('X0', 'X1', 'Y0', 'Y1'),
+                   help='where the simulated people walk [m] (world x forward, y left; '
+                        'default: the scene\'s, everyone always in view)')
     p.add_argument('--k-max', type=int, default=3)
     p.add_argument('--s-max', type=float, default=0.1)
     p.add_argument('--budget-iterations', type=int, default=100)

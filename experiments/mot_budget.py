@@ -231,9 +231,12 @@ def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], tr
 
 
 def render_sim_sequence(root: Path, seed: int, people: int, frames: int, fps: float,
-                        start_s: float = 0.0) -> Path:
+                        start_s: float = 0.0,
+                        area: tuple[tuple[float, float], tuple[float, float]] | None = None
+                        ) -> Path:
     """Render the simulator's pedestrians scene to a MOTChallenge folder (module docstring);
-    returns the folder. Reuses a complete folder rendered with the same parameters."""
+    returns the folder. Reuses a complete folder rendered with the same parameters. area: where
+    the people walk (``scenes.pedestrians``; None: the default, everyone always in view)."""
     import cv2
     import mujoco
 
@@ -246,13 +249,18 @@ def render_sim_sequence(root: Path, seed: int, people: int, frames: int, fps: fl
     params = {'scene': 'pedestrians', 'seed': seed, 'people': people, 'frames': frames,
               'fps': fps, 'start_s': start_s, 'camera': 'left, head at rest'}
     name = f'sim-pedestrians-s{seed}-p{people}-{frames}f-{fps:g}fps'
+    if area is not None:
+        (x0, x1), (y0, y1) = area
+        params['area'] = [[x0, x1], [y0, y1]]
+        name += f'-area{x0:g}_{x1:g}_{y0:g}_{y1:g}'
     seq = root / name
     stamp = seq / 'render.json'
     if stamp.is_file() and json.loads(stamp.read_text()) == params:
         return seq
     (seq / 'img1').mkdir(parents=True, exist_ok=True)
     (seq / 'gt').mkdir(exist_ok=True)
-    scene = build_scene('pedestrians', seed, count=people)
+    scene = (build_scene('pedestrians', seed, count=people) if area is None else
+             build_scene('pedestrians', seed, count=people, area=area))
     model, _ = compile_model(scene)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)                         # the head at rest (all joints 0)

@@ -140,3 +140,21 @@ def test_pedestrians_scene_uses_the_crowd_module() -> None:
         assert tight is not None
         assert (tight[2] - tight[0]) <= (loose[2] - loose[0]) + 1.0
         assert loose[0] - 1.0 <= (tight[0] + tight[2]) / 2 <= loose[2] + 1.0
+
+
+def test_pedestrians_walk_in_the_area_given() -> None:
+    # A wider area than the default (y within +-2.5 m) lets people leave the view and come
+    # back, as on a real street (bench/mot_peers.py --sim-area).
+    wide = ((1.5, 6.0), (-5.0, 5.0))
+    try:
+        scene = build_scene('pedestrians', 0, count=4, area=wide)
+    except SceneUnavailable as exc:
+        pytest.skip(str(exc))
+    crowd = scene.crowd
+    assert crowd.area == wide
+    xy = np.concatenate([p.path_xy for p in crowd.people])
+    lo, hi = np.array([1.5, -5.0]) + crowd.margin, np.array([6.0, 5.0]) - crowd.margin
+    assert np.all(xy >= lo - 1e-6) and np.all(xy <= hi + 1e-6)
+    assert np.abs(xy[:, 1]).max() > 2.5                 # beyond the default area
+    default = build_scene('pedestrians', 0, count=4).crowd
+    assert np.abs(np.concatenate([p.path_xy for p in default.people])[:, 1]).max() <= 2.5

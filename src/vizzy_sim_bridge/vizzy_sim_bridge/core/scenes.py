@@ -558,8 +558,14 @@ def visual_search(seed: int, n_cans: int = 8) -> Scene:
 # ----------------------------------------------------------------------------- pedestrians
 
 
-def pedestrians(seed: int, count: int = 4) -> Scene:
-    """People walking in front of the head (thesis chapter 5), from core.pedestrians."""
+def pedestrians(seed: int, count: int = 4,
+                area: tuple[tuple[float, float], tuple[float, float]] | None = None) -> Scene:
+    """People walking in front of the head (thesis chapter 5), from core.pedestrians.
+
+    area: ((x_min, x_max), (y_min, y_max)) [m] in the world frame where they walk (None: the
+    crowd's default, where everyone stays in the left eye's view; a wider area makes people
+    leave the view and come back, as on a real street).
+    """
     try:
         from vizzy_sim_bridge.core.pedestrians import PedestrianCrowd
     except ImportError as exc:
@@ -568,7 +574,8 @@ def pedestrians(seed: int, count: int = 4) -> Scene:
             f'which is not available here ({exc}); choose scene tabletop or visual_search') from exc
     scene_seq, crowd_seq = np.random.SeedSequence([seed, 3]).spawn(2)
     rng = np.random.default_rng(scene_seq)
-    crowd = PedestrianCrowd(np.random.default_rng(crowd_seq), int(count))
+    crowd = (PedestrianCrowd(np.random.default_rng(crowd_seq), int(count)) if area is None else
+             PedestrianCrowd(np.random.default_rng(crowd_seq), int(count), area=area))
     b = _Builder()
     floor = b.texture('street_floor', _pavement(rng), (12.0, 12.0))
     # a calm facade, not rich_texture: busy backgrounds halve the HOG people detector's recall
