@@ -4,7 +4,8 @@
     .venv/bin/python bench/mot_peers.py [--mot ../shared/data/mot17-mini] [--sim-seeds 0 1]
         [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
         [--birth-share B] [--report-misses N] [--scale-accel-std A] [--init-scale-velocity-std V]
-        [--occluded-share O]
+        [--occluded-share O] [--tentative-misses N] [--region-hit-threshold T]
+        [--sim-area X0 X1 Y0 Y1]
 
 Peer: ByteTrack (``trackers.ByteTrackTracker``, Roboflow's maintained re-implementation; the
 ``supervision`` package dropped its own ByteTrack in 0.27) fed with OpenCV's HOG people
@@ -169,7 +170,7 @@ def pick(m: dict[str, Any]) -> dict[str, Any]:
 
 def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
           cfg: TrackerConfig) -> dict[str, Any]:
-    hog = HogDetector()
+    hog = HogDetector(region_hit_threshold=args.region_hit_threshold)
     ours: dict[str, MotEvaluator] = {}
     ours_full: dict[str, MotEvaluator] = {}
     stats: dict[str, dict[str, Any]] = {}
@@ -284,6 +285,13 @@ def main() -> None:
     p.add_argument('--birth-score', type=float, default=DEPLOYED['birth_score'])
     p.add_argument('--occluded-share', type=float, default=DEPLOYED['occluded_share'],
                    help='occlusion reasoning share (0: none; default: the deployed one)')
+    p.add_argument('--tentative-misses', type=int, default=DEPLOYED['tentative_misses'],
+                   help='misses a new track survives before it is confirmed (default: the '
+                        'deployed number)')
+    p.add_argument('--region-hit-threshold', type=float,
+                   default=DEPLOYED['region_hit_threshold'],
+                   help="HOG's SVM threshold in the tracks' regions (default: the deployed one; "
+                        'full frames, and so ByteTrack, keep 0)')
     p.add_argument('--scale-accel-std', type=float, default=DEPLOYED['scale_accel_std'],
                    help='relative scale acceleration std per frame^2 of the motion model '
                         '(default: the deployed one)')
@@ -299,6 +307,7 @@ def main() -> None:
                           full_frame_period=args.period, birth_share=args.birth_share,
                           report_misses=args.report_misses, birth_score=args.birth_score,
                           occluded_share=args.occluded_share or None,
+                          tentative_misses=args.tentative_misses,
                           init_scale_velocity_std=args.init_scale_velocity_std,
                           motion=replace(MotionModel(), scale_accel_std=args.scale_accel_std))
     cfg = replace(cfg, planner=replace(cfg.planner, area=args.area))

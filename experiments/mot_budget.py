@@ -64,7 +64,13 @@ from mot_planner_node.core.metrics import summarize  # noqa: E402
 from mot_planner_node.core.motchallenge import find_sequences, load_sequence  # noqa: E402
 from mot_planner_node.core.planner import PlannerConfig  # noqa: E402
 from mot_planner_node.core.simulated import render, replay_detector_time, track_synthetic  # noqa: E402
-from mot_planner_node.core.tracker import DEPLOYED, PROTOCOLS, MotTracker, TrackerConfig  # noqa: E402
+from mot_planner_node.core.tracker import (  # noqa: E402
+    DEPLOYED,
+    PROTOCOLS,
+    MotTracker,
+    TrackerConfig,
+    protocol_config,
+)
 from mot_planner_node.evaluate import read_frame, read_summary, run_sequence, timing_summary  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / 'results'
@@ -133,12 +139,10 @@ _GRID: dict[str, Any] = {}
 def _tracker_config(protocol: str, new_tracks: str, period: int, k: int, s: float, t: int,
                     area: str, budget_ms: float | None, iterations: int | None) -> TrackerConfig:
     """The planner's tracker for one grid cell (``protocol``'s tracking terms)."""
-    terms = PROTOCOLS[protocol]
-    return TrackerConfig(mode='planner', new_tracks=new_tracks, full_frame_period=period,
-                         birth_share=terms['birth_share'], report_misses=terms['report_misses'],
-                         birth_score=terms['birth_score'], keep_lost=terms['keep_lost'],
-                         planner=PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t,
-                                               area=area, max_iterations=iterations))
+    return protocol_config(protocol, PlannerConfig(k_max=k, s_max=s, budget_ms=budget_ms, seed=t,
+                                                   max_iterations=iterations),
+                           area=area, mode='planner', new_tracks=new_tracks,
+                           full_frame_period=period)
 
 
 def _run_all(cfg: TrackerConfig, detector: Any) -> dict[str, Any]:
@@ -192,18 +196,14 @@ def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], tr
     protocol = 'deployed' if new_tracks == 'budget' else 'thesis'
     seqs = [load_sequence(p) for p in find_sequences(path)]
     images = {s.name: [read_frame(s, i)[0] for i in range(len(s))] for s in seqs}
-    hog = HogDetector()
+    hog = HogDetector(region_hit_threshold=PROTOCOLS[protocol]['region_hit_threshold'])
     shared = SharedFullFrames(hog)
     _GRID.update(seqs=seqs, images=images, shared=shared, protocol=protocol,
                  new_tracks=new_tracks, period=period, budget_ms=budget_ms,
                  iterations=iterations)
 
     print('full-frame baseline ...', file=sys.stderr, flush=True)
-    terms = PROTOCOLS[protocol]
-    baseline = _run_all(TrackerConfig(mode='full', new_tracks=new_tracks,
-                                      report_misses=terms['report_misses'],
-                                      birth_score=terms['birth_score'],
-                                      keep_lost=terms['keep_lost']), hog)
+    baseline = _run_all(protocol_config(protocol, mode='full', new_tracks=new_tracks), hog)
     _GRID['full_ms'] = {'detector_ms': baseline['detector_ms_after_bootstrap'],
                         'detector_cpu_ms': baseline['detector_cpu_ms_after_bootstrap']}
     for s in seqs:                      # seed the cache with the full frames of every run

@@ -194,7 +194,8 @@ def make_detector(spec: str, args: argparse.Namespace) -> Detector:
     """'hog' or 'package.module:factory' (a callable returning a Detector)."""
     if spec == 'hog':
         return HogDetector(win_stride=args.win_stride, scale=args.scale,
-                           hit_threshold=args.hit_threshold)
+                           hit_threshold=args.hit_threshold,
+                           region_hit_threshold=args.region_hit_threshold)
     module, _, name = spec.partition(':')
     if not name:
         raise ValueError(f"--detector must be 'hog' or 'module:factory', got {spec!r}")
@@ -210,7 +211,9 @@ def resolve_protocol(args: argparse.Namespace) -> argparse.Namespace:
     for name, key in (('new_tracks', 'new_tracks'), ('area', 'area'),
                       ('period', 'full_frame_period'), ('birth_share', 'birth_share'),
                       ('report_misses', 'report_misses'), ('birth_score', 'birth_score'),
-                      ('keep_lost', 'keep_lost'), ('occluded_share', 'occluded_share')):
+                      ('keep_lost', 'keep_lost'), ('occluded_share', 'occluded_share'),
+                      ('tentative_misses', 'tentative_misses'),
+                      ('region_hit_threshold', 'region_hit_threshold')):
         if getattr(args, name, None) is None:
             setattr(args, name, base[key])
     return args
@@ -232,6 +235,7 @@ def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
                          full_frame_period=args.period, birth_share=args.birth_share,
                          birth_score=args.birth_score, keep_lost=args.keep_lost,
                          occluded_share=args.occluded_share or None,
+                         tentative_misses=args.tentative_misses,
                          report_misses=(None if args.report_misses is None
                                         or args.report_misses < 0 else args.report_misses),
                          init_scale_velocity_std=float(
@@ -394,6 +398,9 @@ def parser() -> argparse.ArgumentParser:
                    help='a track whose box a nearer track covers by at least this share is '
                         'not looked for and not missed (0: no occlusion reasoning; default '
                         f"{DEPLOYED['occluded_share']} deployed, none thesis)")
+    p.add_argument('--tentative-misses', type=int, default=None,
+                   help='consecutive misses a new track survives before it is confirmed '
+                        f"(default {DEPLOYED['tentative_misses']} deployed, 0 thesis)")
     p.add_argument('--report-misses', type=int, default=None,
                    help='report a track while it has at most this many consecutive misses '
                         f"(-1: always; default {DEPLOYED['report_misses']} deployed, always "
@@ -404,6 +411,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--win-stride', type=int, default=8, help='HOG window stride')
     p.add_argument('--scale', type=float, default=1.05, help='HOG pyramid scale step')
     p.add_argument('--hit-threshold', type=float, default=0.0, help='HOG SVM threshold')
+    p.add_argument('--region-hit-threshold', type=float, default=None,
+                   help="HOG SVM threshold inside the tracks' regions (default "
+                        f"{DEPLOYED['region_hit_threshold']} deployed, "
+                        f"{THESIS['region_hit_threshold']} thesis)")
     p.add_argument('--max-frames', type=int, default=None, help='first n frames of each sequence')
     p.add_argument('--output', type=Path, default=None, help='also write the JSON here')
     p.add_argument('--quiet', action='store_true', help='no progress bars or table')

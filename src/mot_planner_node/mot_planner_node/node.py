@@ -177,8 +177,13 @@ PARAMETERS: tuple[Param, ...] = (
     Param('occluded_share', DEPLOYED['occluded_share'], 'A track whose box is covered by at '
           'least this share by a nearer track\'s is occluded: no region is spent on it and it '
           'is not missed while hidden (0: no occlusion reasoning), in [0, 1].', '[0, 1]'),
+    Param('tentative_misses', DEPLOYED['tentative_misses'], 'Consecutive misses a new track '
+          'survives before it is confirmed (0: dropped on its first), in [0, 100].', '[0, 100]'),
     Param('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in '
           '[-10, 10].', '[-10, 10]'),
+    Param('region_hit_threshold', DEPLOYED['region_hit_threshold'], 'HOG SVM hit threshold '
+          'inside the tracks\' regions, where a person is predicted (lower: a weaker window '
+          'there still updates the track), in [-10, 10].', '[-10, 10]'),
     # step 8 from 8: the multiples of 8 (the HOG block stride)
     Param('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].', '[8, 64]',
           step=8),
@@ -214,8 +219,8 @@ PARAMETERS: tuple[Param, ...] = (
 )
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
 TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
-                    'keep_lost', 'occluded_share')
-DETECTOR_PARAMETERS = ('hit_threshold', 'win_stride', 'scale')
+                    'keep_lost', 'occluded_share', 'tentative_misses')
+DETECTOR_PARAMETERS = ('hit_threshold', 'region_hit_threshold', 'win_stride', 'scale')
 PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
 TF_HISTORY_S = 2.0
 
@@ -255,7 +260,8 @@ def camera_k(msg: Any) -> list[float] | None:
 def make_hog_detector(params: dict[str, Any]) -> Detector:
     """The default detector: OpenCV's HOG people detector with the node's settings."""
     return HogDetector(win_stride=int(params['win_stride']), scale=float(params['scale']),
-                       hit_threshold=float(params['hit_threshold']))
+                       hit_threshold=float(params['hit_threshold']),
+                       region_hit_threshold=float(params['region_hit_threshold']))
 
 
 #: params -> Detector. Module-level so that a test (or an integrator) can plug in another one.
@@ -270,7 +276,8 @@ def track_settings(params: dict[str, Any]) -> dict[str, Any]:
             'birth_score': float(params['birth_score']),
             'report_misses': None if misses < 0 else misses,
             'keep_lost': int(params['keep_lost']),
-            'occluded_share': float(params['occluded_share']) or None}
+            'occluded_share': float(params['occluded_share']) or None,
+            'tentative_misses': int(params['tentative_misses'])}
 
 
 def planner_config(params: dict[str, Any]) -> PlannerConfig:

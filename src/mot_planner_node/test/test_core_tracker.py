@@ -117,6 +117,32 @@ def test_tracks_die_after_misses_and_births_come_from_full_frames() -> None:
     assert r.ids.tolist() == [1, 2]
 
 
+@pytest.mark.parametrize('allowed', [0, 1, 2])
+def test_a_new_track_survives_tentative_misses_then_is_dropped(allowed: int) -> None:
+    det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0, jitter=0.0)
+    frames = lanes(12)
+
+    def newcomer_missed(misses: int) -> MotTracker:
+        t = MotTracker(det, TrackerConfig(mode='full', new_tracks='periodic', confirm_hits=2,
+                                          tentative_misses=allowed))
+        det.set_truth(frames[0][:1])
+        t.step(BLANK)                                    # bootstrap: one person
+        det.set_truth(frames[1][:2])
+        assert t.step(BLANK).created == 1                # a newcomer: tentative
+        for k in range(misses):                          # HOG misses the newcomer
+            det.set_truth(frames[2 + k][:1])
+            t.step(BLANK)
+        return t
+
+    # Up to `allowed` misses it lives on, and the next detection confirms it (shown).
+    t = newcomer_missed(allowed)
+    assert len(t.tracks) == 2
+    det.set_truth(frames[2 + allowed][:2])
+    assert len(t.step(BLANK).ids) == 2
+    # One more miss drops it.
+    assert len(newcomer_missed(allowed + 1).tracks) == 1
+
+
 def test_sweep_adds_a_strip() -> None:
     det = SimulatedDetector(p_detect=1.0, false_positives_per_frame=0.0)
     t = MotTracker(det, TrackerConfig(new_tracks='sweep', sweep_fraction=0.25,
@@ -235,11 +261,13 @@ def test_box_shrink_and_nms() -> None:
 
 
 def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
-    hog = HogDetector()
+    hog = HogDetector(hit_threshold=0.2, region_hit_threshold=-0.5)
     seen = []
+    thresholds = []
 
-    def fake_run(crop, padding=None):
+    def fake_run(crop, padding=None, hit_threshold=None):
         seen.append(crop.shape)
+        thresholds.append(hit_threshold)
         return Detections(np.array([[10.0, 20.0, 64.0, 128.0]]), np.array([1.5]))
 
     monkeypatch.setattr(hog, '_run', fake_run)
@@ -248,6 +276,10 @@ def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
     # The 200x400 crop is scanned at half size (s_lo = 2); boxes come back scaled and shifted.
     assert seen == [(200, 100, 3)]
     np.testing.assert_allclose(d.boxes, [[120.0, 90.0, 128.0, 256.0]])
+    # Regions use their own SVM threshold; a full frame uses the detector's (None: its own).
+    hog.detect(image)
+    assert thresholds == [-0.5, None]
+    assert HogDetector(hit_threshold=0.3).region_hit_threshold == 0.3      # default: the same
     # Regions outside the image are skipped.
     seen.clear()
     d = hog.detect(image, np.array([[700.0, 0.0, 800.0, 100.0, 1.0, 1.0]]))
@@ -313,3 +345,5 @@ def test_occlusion_is_judged_by_the_nearer_box() -> None:
     assert not MotTracker(SimulatedDetector(), TrackerConfig()).occluded(x).any()
     with pytest.raises(ValueError, match='occluded_share'):
         TrackerConfig(occluded_share=0.0)
+    with pytest.raises(ValueError, match='tentative_misses'):
+        TrackerConfig(tentative_misses=-1)

@@ -149,9 +149,15 @@ class HogDetector:
     starts at the region's smallest plausible scale instead of the detector's smallest, and
     is scanned without HOG's border padding (the crop already extends half a window beyond
     the centres it must cover; full frames keep ``padding``).
+
+    ``region_hit_threshold`` (None: ``hit_threshold``) is the SVM threshold inside the regions
+    only: a region is where a tracked person is predicted to be, so a weaker window there is
+    more likely that person than on a full frame (ByteTrack's use of low-score detections);
+    the tracker births only from detections above its own ``birth_score``.
     """
 
     def __init__(self, win_stride: int = 8, scale: float = 1.05, hit_threshold: float = 0.0,
+                 region_hit_threshold: float | None = None,
                  score_threshold: float = 0.0, group_threshold: int = 2,
                  padding: int = 8, box_shrink: BoxShrink = HOG_SHRINK,
                  svm: NDArray[np.float32] | None = None) -> None:
@@ -167,6 +173,8 @@ class HogDetector:
         self.win_stride = int(win_stride)
         self.scale = float(scale)
         self.hit_threshold = float(hit_threshold)
+        self.region_hit_threshold = (self.hit_threshold if region_hit_threshold is None
+                                     else float(region_hit_threshold))
         self.score_threshold = float(score_threshold)
         self.group_threshold = int(group_threshold)
         self.padding = int(padding)
@@ -176,13 +184,15 @@ class HogDetector:
                                          stride=float(win_stride), scale_step=self.scale,
                                          min_scale=1.0)
 
-    def _run(self, image: NDArray[np.uint8], padding: int | None = None) -> Detections:
+    def _run(self, image: NDArray[np.uint8], padding: int | None = None,
+             hit_threshold: float | None = None) -> Detections:
         w, h = self.hog.winSize
         if image.shape[0] < h or image.shape[1] < w:
             return Detections.empty()
         pad = self.padding if padding is None else padding
+        hit = self.hit_threshold if hit_threshold is None else hit_threshold
         rects, weights = self.hog.detectMultiScale(
-            image, hitThreshold=self.hit_threshold, winStride=(self.win_stride,) * 2,
+            image, hitThreshold=hit, winStride=(self.win_stride,) * 2,
             padding=(pad, pad), scale=self.scale, groupThreshold=self.group_threshold)
         if len(rects) == 0:
             return Detections.empty()
@@ -212,7 +222,8 @@ class HogDetector:
                 f = (x1 - x0) / size[0], (y1 - y0) / size[1]
             else:
                 f = 1.0, 1.0
-            det = self._run(np.ascontiguousarray(crop), padding=0)   # crops carry their margin
+            det = self._run(np.ascontiguousarray(crop), padding=0,   # crops carry their margin
+                            hit_threshold=self.region_hit_threshold)
             if len(det.scores):
                 b = det.boxes.copy()
                 b[:, [0, 2]] *= f[0]
