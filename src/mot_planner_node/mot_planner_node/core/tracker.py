@@ -199,7 +199,7 @@ def protocol_config(protocol: str, planner: PlannerConfig | None = None, *,
                          **kwargs)  # type: ignore[arg-type]
 
 
-def deployed_config(planner: PlannerConfig | None = None, **overrides: object) -> TrackerConfig:
+def deployed_config(planner: PlannerConfig | None = None, **overrides: Any) -> TrackerConfig:
     """The deployed configuration (:data:`DEPLOYED`) around a planner configuration, whose
     area is set to DEPLOYED's; ``overrides`` replace any TrackerConfig field."""
     return protocol_config('deployed', planner, **overrides)
