@@ -5,7 +5,7 @@
         [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
         [--birth-share B] [--report-misses N] [--scale-accel-std A] [--init-scale-velocity-std V]
         [--occluded-share O] [--tentative-misses N] [--region-hit-threshold T]
-        [--sim-area X0 X1 Y0 Y1]
+        [--read-upsample U] [--sim-area X0 X1 Y0 Y1]
 
 Peer: ByteTrack (``trackers.ByteTrackTracker``, Roboflow's maintained re-implementation; the
 ``supervision`` package dropped its own ByteTrack in 0.27) fed with OpenCV's HOG people
@@ -170,7 +170,8 @@ def pick(m: dict[str, Any]) -> dict[str, Any]:
 
 def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
           cfg: TrackerConfig) -> dict[str, Any]:
-    hog = HogDetector(region_hit_threshold=args.region_hit_threshold)
+    hog = HogDetector(region_hit_threshold=args.region_hit_threshold,
+                      upsample=args.read_upsample)
     ours: dict[str, MotEvaluator] = {}
     ours_full: dict[str, MotEvaluator] = {}
     stats: dict[str, dict[str, Any]] = {}
@@ -292,6 +293,9 @@ def main() -> None:
                    default=DEPLOYED['region_hit_threshold'],
                    help="HOG's SVM threshold in the tracks' regions (default: the deployed one; "
                         'full frames, and so ByteTrack, keep 0)')
+    p.add_argument('--read-upsample', type=float, default=DEPLOYED['read_upsample'],
+                   help='regions read at this many times their smallest scale and enlarged '
+                        'back (default: the deployed factor)')
     p.add_argument('--scale-accel-std', type=float, default=DEPLOYED['scale_accel_std'],
                    help='relative scale acceleration std per frame^2 of the motion model '
                         '(default: the deployed one)')

@@ -196,7 +196,8 @@ def motchallenge_grid(path: Path, k_values: list[int], s_values: list[float], tr
     protocol = 'deployed' if new_tracks == 'budget' else 'thesis'
     seqs = [load_sequence(p) for p in find_sequences(path)]
     images = {s.name: [read_frame(s, i)[0] for i in range(len(s))] for s in seqs}
-    hog = HogDetector(region_hit_threshold=PROTOCOLS[protocol]['region_hit_threshold'])
+    hog = HogDetector(region_hit_threshold=PROTOCOLS[protocol]['region_hit_threshold'],
+                      upsample=PROTOCOLS[protocol]['read_upsample'])
     shared = SharedFullFrames(hog)
     _GRID.update(seqs=seqs, images=images, shared=shared, protocol=protocol,
                  new_tracks=new_tracks, period=period, budget_ms=budget_ms,

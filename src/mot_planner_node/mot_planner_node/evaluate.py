@@ -195,7 +195,8 @@ def make_detector(spec: str, args: argparse.Namespace) -> Detector:
     if spec == 'hog':
         return HogDetector(win_stride=args.win_stride, scale=args.scale,
                            hit_threshold=args.hit_threshold,
-                           region_hit_threshold=args.region_hit_threshold)
+                           region_hit_threshold=args.region_hit_threshold,
+                           upsample=args.read_upsample)
     module, _, name = spec.partition(':')
     if not name:
         raise ValueError(f"--detector must be 'hog' or 'module:factory', got {spec!r}")
@@ -213,7 +214,8 @@ def resolve_protocol(args: argparse.Namespace) -> argparse.Namespace:
                       ('report_misses', 'report_misses'), ('birth_score', 'birth_score'),
                       ('keep_lost', 'keep_lost'), ('occluded_share', 'occluded_share'),
                       ('tentative_misses', 'tentative_misses'),
-                      ('region_hit_threshold', 'region_hit_threshold')):
+                      ('region_hit_threshold', 'region_hit_threshold'),
+                      ('read_upsample', 'read_upsample')):
         if getattr(args, name, None) is None:
             setattr(args, name, base[key])
     return args
@@ -415,6 +417,10 @@ def parser() -> argparse.ArgumentParser:
                    help="HOG SVM threshold inside the tracks' regions (default "
                         f"{DEPLOYED['region_hit_threshold']} deployed, "
                         f"{THESIS['region_hit_threshold']} thesis)")
+    p.add_argument('--read-upsample', type=float, default=None,
+                   help='regions are read at this many times their smallest scale and enlarged '
+                        f"back (default {DEPLOYED['read_upsample']} deployed, "
+                        f"{THESIS['read_upsample']} thesis)")
     p.add_argument('--max-frames', type=int, default=None, help='first n frames of each sequence')
     p.add_argument('--output', type=Path, default=None, help='also write the JSON here')
     p.add_argument('--quiet', action='store_true', help='no progress bars or table')

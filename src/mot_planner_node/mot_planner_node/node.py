@@ -184,6 +184,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param('region_hit_threshold', DEPLOYED['region_hit_threshold'], 'HOG SVM hit threshold '
           'inside the tracks\' regions, where a person is predicted (lower: a weaker window '
           'there still updates the track), in [-10, 10].', '[-10, 10]'),
+    Param('read_upsample', DEPLOYED['read_upsample'], 'A region is read at this many times its '
+          'smallest scale and enlarged back before HOG scans it (fewer pixels read per region; '
+          '1: read at that scale), in [1, 2].', '[1, 2]'),
     # step 8 from 8: the multiples of 8 (the HOG block stride)
     Param('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].', '[8, 64]',
           step=8),
@@ -220,7 +223,8 @@ PARAMETERS: tuple[Param, ...] = (
 PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
 TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
                     'keep_lost', 'occluded_share', 'tentative_misses')
-DETECTOR_PARAMETERS = ('hit_threshold', 'region_hit_threshold', 'win_stride', 'scale')
+DETECTOR_PARAMETERS = ('hit_threshold', 'region_hit_threshold', 'read_upsample', 'win_stride',
+                       'scale')
 PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
 TF_HISTORY_S = 2.0
 
@@ -261,7 +265,8 @@ def make_hog_detector(params: dict[str, Any]) -> Detector:
     """The default detector: OpenCV's HOG people detector with the node's settings."""
     return HogDetector(win_stride=int(params['win_stride']), scale=float(params['scale']),
                        hit_threshold=float(params['hit_threshold']),
-                       region_hit_threshold=float(params['region_hit_threshold']))
+                       region_hit_threshold=float(params['region_hit_threshold']),
+                       upsample=float(params['read_upsample']))
 
 
 #: params -> Detector. Module-level so that a test (or an integrator) can plug in another one.

@@ -7,7 +7,7 @@ import pytest
 from mot_planner_node.core.kalman import MotionModel
 from mot_planner_node.core.observation import DetectorGeometry, ObservationModel
 from mot_planner_node.core.planner import MctsPlanner, PlannerConfig
-from mot_planner_node.core.regions import pixel_rects, read_area, read_areas
+from mot_planner_node.core.regions import pixel_rects, read_area, read_areas, read_scale
 from mot_planner_node.core.simulated import SimulatedDetector, SyntheticScene
 from mot_planner_node.core.tracker import MotTracker, TrackerConfig
 
@@ -167,3 +167,13 @@ def test_a_lost_track_comes_back_under_its_id(keep_lost: int, same_id: bool) -> 
         assert ids[10:] == [[1]] * 4
     else:                                         # a new track, reported once confirmed
         assert ids[10:] == [[], [2], [2], [2]]
+
+
+def test_an_upsampling_detector_reads_fewer_pixels_per_region() -> None:
+    # Read at upsample x the region's smallest scale: the scaled area shrinks by upsample^2.
+    r = np.array([region(0, 0, 100, 200, s_lo=2.0), region(200, 0, 300, 100, s_lo=0.5)])
+    np.testing.assert_allclose(read_scale(r, 1.5), [3.0, 1.0])   # never finer than the image
+    np.testing.assert_allclose(read_areas(r, 'scaled', SIZE, 1.5),
+                               read_areas(r, 'scaled', SIZE) * [(2 / 3) ** 2, 1.0])
+    assert read_area(r, SIZE, 'scaled', 1.5) == pytest.approx(100 * 200 / 9 + 100 * 100)
+    assert read_area(r, SIZE, 'pixels', 1.5) == read_area(r, SIZE, 'pixels')

@@ -280,6 +280,15 @@ def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
     hog.detect(image)
     assert thresholds == [-0.5, None]
     assert HogDetector(hit_threshold=0.3).region_hit_threshold == 0.3      # default: the same
+    # An upsampling detector reads the crop coarser, then scans it at the region's scale.
+    up = HogDetector(upsample=1.5)
+    crops = []
+    monkeypatch.setattr(up, '_run', lambda crop, padding=None, hit_threshold=None: (
+        crops.append(crop.shape), Detections.empty())[1])
+    up.detect(image, np.array([[100.0, 50.0, 300.0, 450.0, 2.0, 3.0],
+                               [100.0, 50.0, 300.0, 450.0, 1.0, 3.0]]))
+    assert crops == [(200, 100, 3), (400, 200, 3)]
+    assert up.geometry.upsample == 1.5
     # Regions outside the image are skipped.
     seen.clear()
     d = hog.detect(image, np.array([[700.0, 0.0, 800.0, 100.0, 1.0, 1.0]]))

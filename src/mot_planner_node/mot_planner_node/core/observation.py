@@ -44,6 +44,9 @@ class DetectorGeometry:
     stride: window step Q_sl(0) at scale 1, pixels (Eq. 5.8).
     scale_step: ratio between consecutive scales (2^(1/N), Eq. 5.9).
     min_scale: smallest scale the detector scans (1 for detectors that never upsample).
+    upsample: in a region, the detector reads the crop at ``upsample`` times the region's
+        smallest scale and enlarges it before scanning (1: reads it at that scale); what it
+        reads, and so what the S_max constraint counts, shrinks by ``upsample**2``.
     """
 
     window_w: float = 64.0
@@ -51,6 +54,7 @@ class DetectorGeometry:
     stride: float = 8.0
     scale_step: float = 1.05
     min_scale: float = 1.0
+    upsample: float = 1.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -60,6 +64,8 @@ class DetectorGeometry:
             problems.append(f'stride must be > 0, got {self.stride}')
         if not self.scale_step > 1.0:
             problems.append(f'scale_step must be > 1, got {self.scale_step}')
+        if not self.upsample >= 1.0:
+            problems.append(f'upsample must be >= 1, got {self.upsample}')
         if not self.min_scale > 0:
             problems.append(f'min_scale must be > 0, got {self.min_scale}')
         if problems:

@@ -176,7 +176,8 @@ def belief_tables(x: FloatArray, P: FloatArray, pool: IntArray, motion: MotionMo
         else:
             regions = search_regions(xbar[:, None, :], p_bar, geometry, cfg.alpha_c * k,
                                      cfg.alpha_s * k, image_size)
-            area[:, d, :n] = read_areas(regions, cfg.area, image_size)
+            area[:, d, :n] = read_areas(regions, cfg.area, image_size,
+                                        observation.geometry.upsample)
         entropy[:, d, :n] = 0.5 * logdet_sigma(p_bar)
         s_mean = np.broadcast_to(xbar[:, None, 2], (M, n))
         r_eff = observation.expected_covariance(s_mean, np.sqrt(np.maximum(p_bar[..., 2, 2], 0)),
@@ -258,7 +259,7 @@ class MctsPlanner:
 
         def at(k: FloatArray) -> tuple[FloatArray, FloatArray]:
             r = search_regions(x, P, g, cfg.alpha_c * k, cfg.alpha_s * k, image_size)
-            return r, read_areas(r, cfg.area, image_size)
+            return r, read_areas(r, cfg.area, image_size, self.geometry.upsample)
 
         K = x.shape[0]
         regions, areas = at(np.ones(K))
@@ -289,7 +290,8 @@ class MctsPlanner:
             regions, areas, shrink = self.fit_regions(x, P, image_size, budget)
         else:
             regions = self.regions(x, P, image_size)
-            areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, image_size)
+            areas = constraint_areas(x, P, regions, cfg.area, cfg.alpha_c, image_size,
+                                     self.geometry.upsample)
         action = np.zeros(K, dtype=bool)
         attendable = np.flatnonzero(areas <= budget)
         if attendable.size == 0:

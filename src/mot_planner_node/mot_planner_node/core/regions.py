@@ -89,10 +89,11 @@ def centre_areas(x: FloatArray, P: FloatArray, alpha_c: float,
 
 
 def constraint_areas(x: FloatArray, P: FloatArray, regions: FloatArray, mode: str,
-                     alpha_c: float, image_size: tuple[int, int]) -> FloatArray:
+                     alpha_c: float, image_size: tuple[int, int],
+                     upsample: float = 1.0) -> FloatArray:
     """|u^k| as the S_max constraint counts it (see :data:`AREA_MODES`)."""
     if mode in READ_MODES:
-        return read_areas(regions, mode, image_size)
+        return read_areas(regions, mode, image_size, upsample)
     if mode == 'centres':
         return centre_areas(x, P, alpha_c, image_size)
     raise ValueError(f'area mode must be one of {AREA_MODES}, got {mode!r}')
@@ -116,25 +117,29 @@ def pixel_rects(regions: FloatArray, image_size: tuple[int, int]) -> NDArray[np.
     return np.stack([x0, y0, np.maximum(x1, x0), np.maximum(y1, y0)], axis=-1).astype(np.int64)
 
 
-def read_scale(regions: FloatArray) -> FloatArray:
-    """The factor by which the detector shrinks each region's crop (its s_lo, at least 1)."""
+def read_scale(regions: FloatArray, upsample: float = 1.0) -> FloatArray:
+    """The factor by which the detector shrinks each region's crop when it reads it: its s_lo
+    times the detector's ``upsample`` (:class:`.observation.DetectorGeometry`), at least 1."""
     s_lo = np.asarray(regions, dtype=float)[..., S_LO]
-    return np.where(np.isfinite(s_lo), np.maximum(s_lo, 1.0), 1.0)
+    return np.where(np.isfinite(s_lo), np.maximum(s_lo * upsample, 1.0), 1.0)
 
 
-def read_areas(regions: FloatArray, mode: str, image_size: tuple[int, int]) -> FloatArray:
+def read_areas(regions: FloatArray, mode: str, image_size: tuple[int, int],
+               upsample: float = 1.0) -> FloatArray:
     """Pixels the detector reads for each region on its own (...,): the integer crop's area
-    (``'pixels'``), or that over s_lo^2 (``'scaled'``: read at the crop's resolution)."""
+    (``'pixels'``), or that over its :func:`read_scale` squared (``'scaled'``: read at the
+    crop's resolution)."""
     r = pixel_rects(regions, image_size)
     area = ((r[..., 2] - r[..., 0]) * (r[..., 3] - r[..., 1])).astype(float)
     if mode == 'scaled':
-        return area / read_scale(regions) ** 2
+        return area / read_scale(regions, upsample) ** 2
     if mode == 'pixels':
         return area
     raise ValueError(f'read mode must be one of {READ_MODES}, got {mode!r}')
 
 
-def read_area(regions: FloatArray, image_size: tuple[int, int], mode: str = 'pixels') -> float:
+def read_area(regions: FloatArray, image_size: tuple[int, int], mode: str = 'pixels',
+              upsample: float = 1.0) -> float:
     """Pixels the detector reads for all the regions (m, 6) together: the union of their
     integer crops, overlaps counted once (``'scaled'``: each pixel at the finest resolution
     a region covering it reads it). Exact, by coordinate compression of the rectangles."""
@@ -146,7 +151,8 @@ def read_area(regions: FloatArray, image_size: tuple[int, int], mode: str = 'pix
     r = r[keep]
     if not len(r):
         return 0.0
-    weight = (np.ones(len(r)) if mode == 'pixels' else 1.0 / read_scale(regions[keep]) ** 2)
+    weight = (np.ones(len(r)) if mode == 'pixels'
+              else 1.0 / read_scale(regions[keep], upsample) ** 2)
     xs, ys = np.unique(r[:, [0, 2]]), np.unique(r[:, [1, 3]])
     cx, cy = xs[:-1], ys[:-1]                              # cell lower corners
     in_x = (r[:, None, 0] <= cx) & (cx < r[:, None, 2])   # (m, nx)
