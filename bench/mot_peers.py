@@ -2,7 +2,8 @@
 """The budgeted tracker against ByteTrack on the same HOG detections. Last line: JSON.
 
     .venv/bin/python bench/mot_peers.py [--mot ../shared/data/mot17-mini] [--sim-seeds 0 1]
-        [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
+        [--seeds 0 1 2 3 4] [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
+        [--horizon T]
         [--birth-share B] [--report-misses N] [--scale-accel-std A] [--init-scale-velocity-std V]
         [--occluded-share O] [--tentative-misses N] [--region-hit-threshold T]
         [--read-upsample U] [--sim-area X0 X1 Y0 Y1]
@@ -13,7 +14,9 @@ detector run on every *full* frame. Ours: the deployed configuration of mot_plan
 node's defaults: S_max binds the pixels the detector reads, new tracks from full-frame
 detections paid from the budget, ``core/tracker.py``), HOG run only on the regions it plans,
 with a deterministic planning budget of ``--budget-iterations`` MCTS runs per frame (same
-numbers every run). Both are scored by the same code (``core/metrics.py``, py-motmetrics
+numbers every run), once per MCTS seed of ``--seeds``: ours is reported as the mean over the
+seeds (``ours``; each seed's in ``ours_per_seed``), since one seed moves street MOTA by up to
+0.1. Both are scored by the same code (``core/metrics.py``, py-motmetrics
 CLEAR MOT and IDF1, IoU >= 0.5) and both use the same detector boxes (HOG windows through
 the same box shrink). Also reported: our tracker on the full-frame detections (``ours_full``).
 
@@ -168,13 +171,22 @@ def pick(m: dict[str, Any]) -> dict[str, Any]:
     return {k: (round(m[k], 4) if isinstance(m[k], float) else m[k]) for k in METRICS}
 
 
+def mean_metrics(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """The mean over MCTS seeds of each metric :func:`pick` keeps (one seed moves MOTA by
+    up to 0.1 on the street: single runs are noise)."""
+    return {k: round(float(np.mean([r[k] for r in runs])), 4) for k in METRICS}
+
+
 def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
-          cfg: TrackerConfig) -> dict[str, Any]:
+          cfgs: list[TrackerConfig]) -> dict[str, Any]:
+    """Ours with each of ``cfgs`` (one per MCTS seed), ours on full frames and ByteTrack's
+    threshold grid, on the sequences ``seqs``."""
+    cfg = cfgs[0]
     hog = HogDetector(region_hit_threshold=args.region_hit_threshold,
                       upsample=args.read_upsample)
-    ours: dict[str, MotEvaluator] = {}
+    ours: list[dict[str, MotEvaluator]] = [{} for _ in cfgs]       # per MCTS seed
     ours_full: dict[str, MotEvaluator] = {}
-    stats: dict[str, dict[str, Any]] = {}
+    stats: dict[str, dict[str, Any]] = {}       # per sequence, all seeds' frames
     data = {}
     full_cfg = replace(cfg, mode='full')       # the same tracker, detections on every frame
     for seq in seqs:
@@ -183,8 +195,13 @@ def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
             raise SystemExit(f'mot_peers: {seq.path}: a frame cannot be read')
         dets, cpu = full_frame_detections(seq, images, hog, args.cache)
         data[seq.name] = (seq, dets, cpu)
-        det = CachedFullFrames(hog, dets, cpu)
-        ours[seq.name], stats[seq.name] = run_ours(seq, images, det, cfg)
+        runs = []
+        for k, c in enumerate(cfgs):
+            ours[k][seq.name], st = run_ours(seq, images, CachedFullFrames(hog, dets, cpu), c)
+            runs.append(st)
+        stats[seq.name] = {key: [v for st in runs for v in st[key]] for key in runs[0]}
+        stats[seq.name]['after'] = [v for st in runs for v in st['read'][1:]]
+        stats[seq.name]['cpu_after'] = [v for st in runs for v in st['cpu'][1:]]
         ours_full[seq.name], _ = run_ours(seq, images, CachedFullFrames(hog, dets, cpu),
                                           full_cfg)
         print(f'{name}: {seq.name} done', file=sys.stderr, flush=True)
@@ -200,7 +217,8 @@ def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
                          'metrics': m})
     best = max(grid, key=lambda g: (g['metrics']['OVERALL']['mota'] or -1e9,
                                     g['metrics']['OVERALL']['idf1'] or 0.0))
-    m_ours, m_full = summarize(ours), summarize(ours_full)
+    m_seeds = [summarize(o) for o in ours]
+    m_full = summarize(ours_full)
     read = np.concatenate([stats[n]['read'] for n in stats])
     full = np.concatenate([stats[n]['full'] for n in stats]).astype(bool)
     cpu_ours = np.concatenate([stats[n]['cpu'] for n in stats])
@@ -211,17 +229,22 @@ def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
         r = np.asarray(stats[n]['read'])
         f = np.asarray(stats[n]['full'], bool)
         per_seq[n] = {
-            'frames': len(r), 'ours': pick(m_ours[n]), 'bytetrack_best': pick(best['metrics'][n]),
+            'frames': len(data[n][0]), 'ours': mean_metrics([pick(m[n]) for m in m_seeds]),
+            'ours_mota_per_seed': [round(m[n]['mota'], 4) for m in m_seeds],
+            'bytetrack_best': pick(best['metrics'][n]),
             'ours_full': pick(m_full[n]),
             'read_fraction_mean': round(float(r.mean()), 4),
             'read_fraction_max_tracking': round(float(r[~f].max()), 4) if (~f).any() else None,
-            'full_frames': int(f.sum()),
+            'full_frames': round(float(f.sum()) / len(cfgs), 1),
             'covered_fraction_mean': round(float(np.mean(stats[n]['covered'])), 4),
             'detector_cpu_ms_ours': round(1e3 * float(np.mean(stats[n]['cpu'])), 2),
             'detector_cpu_ms_full': round(1e3 * float(np.mean(data[n][2])), 2)}
     return {
-        'sequences': len(seqs), 'frames': int(read.size),
-        'ours': pick(m_ours['OVERALL']), 'bytetrack_best': pick(best['metrics']['OVERALL']),
+        'sequences': len(seqs), 'frames': int(read.size) // len(cfgs),
+        'mcts_seeds': [c.planner.seed for c in cfgs],
+        'ours': mean_metrics([pick(m['OVERALL']) for m in m_seeds]),
+        'ours_per_seed': [pick(m['OVERALL']) for m in m_seeds],
+        'bytetrack_best': pick(best['metrics']['OVERALL']),
         'bytetrack_best_thresholds': {'activation': best['activation'], 'high': best['high']},
         'bytetrack_grid': [{'activation': g['activation'], 'high': g['high'],
                             'mota': round(g['metrics']['OVERALL']['mota'], 4),
@@ -229,10 +252,10 @@ def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
         'ours_full': pick(m_full['OVERALL']),
         'read_fraction_mean': round(float(read.mean()), 4),
         'read_fraction_mean_after_bootstrap': round(float(np.mean(
-            np.concatenate([stats[n]['read'][1:] for n in stats]))), 4),
+            np.concatenate([stats[n]['after'] for n in stats]))), 4),
         'read_fraction_max_tracking': (round(float(read[~full].max()), 4) if (~full).any()
                                        else None),
-        'full_frames': int(full.sum()),
+        'full_frames': round(float(full.sum()) / len(cfgs), 1),
         'covered_fraction_mean': round(float(covered.mean()), 4),
         'covered_fraction_max_tracking': (round(float(covered[~full].max()), 4)
                                           if (~full).any() else None),
@@ -241,7 +264,7 @@ def group(name: str, seqs: list[Sequence], args: argparse.Namespace,
         'detector_cpu_ratio_full_over_ours': round(float(cpu_full.mean() / cpu_ours.mean()), 2),
         # frames 2..n of each sequence: both read the first frame whole
         'detector_cpu_ms_after_bootstrap_ours': round(1e3 * float(np.mean(np.concatenate(
-            [stats[n]['cpu'][1:] for n in stats]))), 2),
+            [stats[n]['cpu_after'] for n in stats]))), 2),
         'detector_cpu_ms_after_bootstrap_full': round(1e3 * float(np.mean(np.concatenate(
             [c[1:] for _, _, c in data.values()]))), 2),
         'per_sequence': per_seq,
@@ -278,8 +301,12 @@ def main() -> None:
     p.add_argument('--k-max', type=int, default=3)
     p.add_argument('--s-max', type=float, default=0.1)
     p.add_argument('--budget-iterations', type=int, default=100)
-    p.add_argument('--seed', type=int, default=0)
+    p.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2, 3, 4],
+                   help='MCTS seeds: ours runs once per seed and the figures are their mean '
+                        '(one seed moves MOTA by up to 0.1 on the street)')
     p.add_argument('--area', default=DEPLOYED['area'])
+    p.add_argument('--horizon', type=int, default=DEPLOYED['horizon'],
+                   help='planning horizon T, the MCTS depth (default: the deployed one)')
     p.add_argument('--birth-share', type=float, default=DEPLOYED['birth_share'])
     p.add_argument('--period', type=int, default=DEPLOYED['full_frame_period'])
     p.add_argument('--report-misses', type=int, default=DEPLOYED['report_misses'])
@@ -307,26 +334,28 @@ def main() -> None:
     p.add_argument('--cache', type=Path, default=CACHE)
     args = p.parse_args()
     cfg = deployed_config(PlannerConfig(k_max=args.k_max, s_max=args.s_max, budget_ms=None,
-                                        max_iterations=args.budget_iterations, seed=args.seed),
+                                        max_iterations=args.budget_iterations),
                           full_frame_period=args.period, birth_share=args.birth_share,
                           report_misses=args.report_misses, birth_score=args.birth_score,
                           occluded_share=args.occluded_share or None,
                           tentative_misses=args.tentative_misses,
                           init_scale_velocity_std=args.init_scale_velocity_std,
                           motion=replace(MotionModel(), scale_accel_std=args.scale_accel_std))
-    cfg = replace(cfg, planner=replace(cfg.planner, area=args.area))
+    cfgs = [replace(cfg, planner=replace(cfg.planner, area=args.area, depth=args.horizon,
+                                         seed=seed))
+            for seed in args.seeds]
     t0, c0 = time.perf_counter(), time.process_time()
     out: dict[str, Any] = {'config': {k: str(v) if isinstance(v, Path) else v
                                       for k, v in vars(args).items()}}
     if args.mot.is_dir():
         seqs = [load_sequence(s) for s in find_sequences(args.mot)]
-        out['mot'] = group('mot', seqs, args, cfg)
+        out['mot'] = group('mot', seqs, args, cfgs)
     else:
         print(f'mot_peers: {args.mot}: not found, MOTChallenge part skipped', file=sys.stderr)
     if args.sim_seeds:
         seqs = sim_sequences(args)
         if seqs:
-            out['sim'] = group('sim', seqs, args, cfg)
+            out['sim'] = group('sim', seqs, args, cfgs)
     for g in ('mot', 'sim'):
         if g in out:
             o, b = out[g]['ours'], out[g]['bytetrack_best']
@@ -337,8 +366,11 @@ def main() -> None:
                 out[g]['read_fraction_mean_after_bootstrap'])
             out[f'{g}_covered_fraction_mean'] = out[g]['covered_fraction_mean']
             out[f'{g}_detector_cpu_ratio'] = out[g]['detector_cpu_ratio_full_over_ours']
-            print(f'{g}: ours MOTA {o["mota"]:.3f} IDF1 {o["idf1"]:.3f} IDSW '
-                  f'{o["num_switches"]} | ByteTrack (best) MOTA {b["mota"]:.3f} IDF1 '
+            per_seed = ', '.join(f'{r["mota"]:.3f}' for r in out[g]['ours_per_seed'])
+            out[f'{g}_mota_ours_per_seed'] = [r['mota'] for r in out[g]['ours_per_seed']]
+            print(f'{g}: ours (mean of {len(args.seeds)} MCTS seeds; MOTA {per_seed}) MOTA '
+                  f'{o["mota"]:.3f} IDF1 {o["idf1"]:.3f} IDSW '
+                  f'{o["num_switches"]:g} | ByteTrack (best) MOTA {b["mota"]:.3f} IDF1 '
                   f'{b["idf1"]:.3f} IDSW {b["num_switches"]} | read {out[g]["read_fraction_mean"]}'
                   f' of the image ({out[g]["read_fraction_mean_after_bootstrap"]} after the '
                   'first frame, which both read whole), detector CPU '

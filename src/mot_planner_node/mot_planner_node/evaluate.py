@@ -215,7 +215,7 @@ def resolve_protocol(args: argparse.Namespace) -> argparse.Namespace:
                       ('keep_lost', 'keep_lost'), ('occluded_share', 'occluded_share'),
                       ('tentative_misses', 'tentative_misses'),
                       ('region_hit_threshold', 'region_hit_threshold'),
-                      ('read_upsample', 'read_upsample')):
+                      ('read_upsample', 'read_upsample'), ('horizon', 'horizon')):
         if getattr(args, name, None) is None:
             setattr(args, name, base[key])
     return args
@@ -229,8 +229,8 @@ def tracker_config(args: argparse.Namespace, mode: str) -> TrackerConfig:
     else:                                  # wall clock, as the node (optionally capped)
         budget_ms, max_iterations = args.budget_ms, args.iterations
     planner = PlannerConfig(k_max=args.k_max, s_max=args.s_max, area=args.area,
-                            alpha_c=args.alpha_c, alpha_s=args.alpha_s, budget_ms=budget_ms,
-                            max_iterations=max_iterations, seed=args.seed)
+                            alpha_c=args.alpha_c, alpha_s=args.alpha_s, depth=args.horizon,
+                            budget_ms=budget_ms, max_iterations=max_iterations, seed=args.seed)
     # mode comes from the command line; TrackerConfig refuses anything but these two
     return TrackerConfig(mode=cast(Literal['planner', 'full'], mode),
                          new_tracks=args.new_tracks,
@@ -360,8 +360,9 @@ def parser() -> argparse.ArgumentParser:
                    help="'deployed' (the node's configuration: births paid from the S_max "
                         "budget, S_max counting the pixels read) or 'thesis' (section 5.4: no "
                         'births, S_max counting the centre boxes); sets the defaults of '
-                        '--new-tracks, --area, --period, --birth-share, --birth-score, '
-                        '--keep-lost, --report-misses')
+                        '--new-tracks, --area, --horizon, --period, --birth-share, '
+                        '--birth-score, --keep-lost, --report-misses and the other options '
+                        "whose help names both")
     p.add_argument('--k-max', type=int, default=3, help='K_max: regions per frame')
     p.add_argument('--s-max', type=float, default=0.1,
                    help="S_max: the share of the image's pixels the detector may read per frame "
@@ -371,6 +372,9 @@ def parser() -> argparse.ArgumentParser:
                         f"({DEPLOYED['area']} deployed, {THESIS['area']} thesis)")
     p.add_argument('--alpha-c', type=float, default=1.0, help='centre width of a region (Eq. 5.18)')
     p.add_argument('--alpha-s', type=float, default=1.0, help='scale width of a region (Eq. 5.19)')
+    p.add_argument('--horizon', type=int, default=None,
+                   help='planning horizon T in frames, the MCTS depth (section 5.3.5; default '
+                        f"{DEPLOYED['horizon']} deployed, {THESIS['horizon']} thesis)")
     p.add_argument('--budget-ms', type=float, default=10.0,
                    help='wall-clock planning time per frame (as the node)')
     p.add_argument('--budget-iterations', type=int, default=None,

@@ -159,6 +159,8 @@ PARAMETERS: tuple[Param, ...] = (
           '[0, 10]'),
     Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in (0, 1000].',
           '(0, 1000]'),
+    Param('horizon', DEPLOYED['horizon'], 'Planning horizon T in frames, the depth of the MCTS '
+          'search (section 5.3.5; the thesis used 3), in [1, 8].', '[1, 8]'),
     Param('full_frame_period', DEPLOYED['full_frame_period'], 'Fewest frames between two '
           'full-frame detections (where new tracks are born; each is paid from the S_max '
           'budget the regions leave), in [1, 100000].', '[1, 100000]'),
@@ -220,7 +222,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param('world_frame', 'base_link', 'A frame that does not rotate with the head, for '
           'ego-motion.', constraints='a frame id, not empty'),
 )
-PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'full_frame_period')
+PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'horizon',
+                      'full_frame_period')
 TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
                     'keep_lost', 'occluded_share', 'tentative_misses')
 DETECTOR_PARAMETERS = ('hit_threshold', 'region_hit_threshold', 'read_upsample', 'win_stride',
@@ -288,7 +291,8 @@ def track_settings(params: dict[str, Any]) -> dict[str, Any]:
 def planner_config(params: dict[str, Any]) -> PlannerConfig:
     return PlannerConfig(k_max=int(params['k_max']), s_max=float(params['s_max']),
                          alpha_c=float(params['alpha_c']), alpha_s=float(params['alpha_s']),
-                         budget_ms=float(params['budget_ms']), area=str(DEPLOYED['area']))
+                         budget_ms=float(params['budget_ms']), area=str(DEPLOYED['area']),
+                         depth=int(params['horizon']))
 
 
 class MotPlannerNode(Node):
@@ -361,7 +365,8 @@ class MotPlannerNode(Node):
     # --- set-up and inputs ------------------------------------------------------------------
 
     def _new_tracker(self) -> MotTracker:
-        cfg = deployed_config(planner_config(self._p), **track_settings(self._p))
+        cfg = deployed_config(planner_config(self._p), horizon=int(self._p['horizon']),
+                              **track_settings(self._p))
         return MotTracker(DETECTOR_FACTORY(dict(self._p)), cfg)
 
     def _person_gate(self) -> ConsistencyGate:

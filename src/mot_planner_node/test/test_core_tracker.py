@@ -356,3 +356,17 @@ def test_occlusion_is_judged_by_the_nearer_box() -> None:
         TrackerConfig(occluded_share=0.0)
     with pytest.raises(ValueError, match='tentative_misses'):
         TrackerConfig(tentative_misses=-1)
+
+
+def test_protocols_set_the_planning_horizon() -> None:
+    """The deployed tracker plans one frame ahead, the thesis protocol T = 3 frames; an
+    explicit horizon (the node's parameter) wins over the protocol's, whatever the planner
+    configuration it is given says."""
+    from mot_planner_node.core.tracker import DEPLOYED, THESIS, deployed_config, protocol_config
+    given = PlannerConfig(depth=5, budget_ms=None, max_iterations=10)
+    assert deployed_config(given).planner.depth == DEPLOYED['horizon'] == 1
+    assert protocol_config('thesis', given).planner.depth == THESIS['horizon'] == 3
+    cfg = deployed_config(given, horizon=2, occluded_share=0.5)
+    assert (cfg.planner.depth, cfg.occluded_share, cfg.planner.max_iterations) == (2, 0.5, 10)
+    with pytest.raises(ValueError, match='depth'):
+        deployed_config(given, horizon=0)

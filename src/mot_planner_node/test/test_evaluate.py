@@ -290,6 +290,7 @@ def test_fixed_seed_and_iterations_give_identical_json(tmp_path: Path, capsys,
     result = json.loads(outs[0])
     assert result['config']['protocol'] == 'deployed'
     assert result['config']['new_tracks'] == 'budget' and result['config']['area'] == 'scaled'
+    assert result['config']['horizon'] == DEPLOYED['horizon'] == 1
     assert 'detector_ms_per_frame' not in result['overall']['planner']
     p = result['overall']['planner']
     per_frame = result['sequences']['SEQ-01']['planner']['read_fraction_per_frame']
@@ -303,6 +304,7 @@ def test_fixed_seed_and_iterations_give_identical_json(tmp_path: Path, capsys,
     assert evaluate.main(argv + ['--protocol', 'thesis']) == 0
     thesis = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert thesis['config']['new_tracks'] == 'none' and thesis['config']['area'] == 'centres'
+    assert thesis['config']['horizon'] == 3                       # the thesis's T
     assert thesis['overall']['planner']['full_frames'] == 1
 
 
@@ -314,3 +316,6 @@ def test_bad_options_are_one_line(capsys) -> None:
     assert len(err.splitlines()) == 1 and 'invalid choice' in err
     assert evaluate.main(['.', '--budget-iterations', '0', '--quiet']) == 2
     assert 'max_iterations' in capsys.readouterr().err
+    assert evaluate.main(['.', '--horizon', '0', '--quiet']) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and 'depth must be in [1, 8]' in err

@@ -244,8 +244,10 @@ def test_bad_frames_size_change_and_parameters(graph, capfd) -> None:
 
     # parameters at run time: the planner's keep the tracks, bad values are refused
     ids = set(mot._tracker.tracks.ids.tolist())
-    assert mot.set_parameters([Parameter('k_max', value=1)])[0].successful
-    assert mot._tracker.planner.cfg.k_max == 1
+    assert mot._tracker.planner.cfg.depth == 1                    # the deployed horizon
+    assert mot.set_parameters([Parameter('k_max', value=1), Parameter('horizon', value=3)])[0]\
+        .successful
+    assert (mot._tracker.planner.cfg.k_max, mot._tracker.planner.cfg.depth) == (1, 3)
     def after_change() -> list[Any]:  # by stamp: a message of frame 6 may still be in flight
         first = _image(render(7, 400, 300), 7).header.stamp
         return [m for m in camera.attention
@@ -257,6 +259,7 @@ def test_bad_frames_size_change_and_parameters(graph, capfd) -> None:
     assert all(len(m.regions) <= 1 and m.k_max == 1 for m in after_change())
     assert set(mot._tracker.tracks.ids.tolist()) == ids
     assert not mot.set_parameters([Parameter('s_max', value=1.5)])[0].successful
+    assert not mot.set_parameters([Parameter('horizon', value=9)])[0].successful
     # the track births and reporting keep the tracks as well (-1: report a track while it lives)
     assert all(r.successful for r in mot.set_parameters([
         Parameter('birth_share', value=0.4), Parameter('report_misses', value=-1),
