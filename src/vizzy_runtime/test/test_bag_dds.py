@@ -158,9 +158,11 @@ def test_recorder_skips_excluded_topics(tmp_path):
 
 FULL_DISK_RECORDER = textwrap.dedent('''
     import resource, signal, sys
-    # past the limit, writes fail (EFBIG) as on a full disk
+    # past the limit, writes fail (EFBIG) as on a full disk; the limit leaves room for whole
+    # chunks (1 MiB of the test's text compresses to about 0.6 MB: with a 600 KB limit only a
+    # chunk flushed early by the 1 s flush interval fitted, so a fast machine kept nothing)
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (600_000, 600_000))
+    resource.setrlimit(resource.RLIMIT_FSIZE, (2_000_000, 2_000_000))
     from vizzy_runtime.cli import main
     sys.exit(main(sys.argv[1:]))
 ''')
@@ -190,6 +192,7 @@ def test_a_full_disk_ends_recording_with_one_line_and_a_readable_bag(tmp_path: P
     finally:
         if recorder.poll() is None:
             recorder.kill()
+        writer = None     # its DDS writer goes now, not with a failure's traceback (later tests)
     lines = err.strip().splitlines()
     assert recorder.returncode == 2, err
     assert ('Traceback' not in err and lines[-1].startswith('vizzy: ')
