@@ -340,10 +340,9 @@ def main() -> None:
                           occluded_share=args.occluded_share or None,
                           tentative_misses=args.tentative_misses,
                           init_scale_velocity_std=args.init_scale_velocity_std,
-                          motion=replace(MotionModel(), scale_accel_std=args.scale_accel_std))
-    cfgs = [replace(cfg, planner=replace(cfg.planner, area=args.area, depth=args.horizon,
-                                         seed=seed))
-            for seed in args.seeds]
+                          motion=replace(MotionModel(), scale_accel_std=args.scale_accel_std),
+                          area=args.area, horizon=args.horizon)
+    cfgs = [replace(cfg, planner=replace(cfg.planner, seed=seed)) for seed in args.seeds]
     t0, c0 = time.perf_counter(), time.process_time()
     out: dict[str, Any] = {'config': {k: str(v) if isinstance(v, Path) else v
                                       for k, v in vars(args).items()}}
