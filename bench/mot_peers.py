@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The budgeted tracker against ByteTrack on the same HOG detections. Last line: JSON.
 
-    .venv/bin/python bench/mot_peers.py [--mot ../shared/data/mot17-mini] [--sim-seeds 0 1]
+    .venv/bin/python bench/mot_peers.py [--mot ../shared/data/mot17-mini] [--sim-seeds 0 1 2 3 4 5]
         [--seeds 0 1 2 3 4] [--sim-frames 300] [--budget-iterations 100] [--k-max 3] [--s-max 0.1]
         [--horizon T]
         [--birth-share B] [--report-misses N] [--scale-accel-std A] [--init-scale-velocity-std V]
@@ -292,7 +292,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--mot', type=Path, default=ROOT.parent / 'shared' / 'data' / 'mot17-mini',
                    help='MOTChallenge sequence folder or folder of them (skipped if missing)')
-    p.add_argument('--sim-seeds', type=int, nargs='*', default=[0, 1])
+    p.add_argument('--sim-seeds', type=int, nargs='*', default=[0, 1, 2, 3, 4, 5],
+                   help='simulated street sequences (scene seeds; none: skip the simulator). Six '
+                        'by default: on two, one MCTS seed moves MOTA by up to 0.2')
     p.add_argument('--sim-frames', type=int, default=300)
     p.add_argument('--sim-people', type=int, default=6)
     p.add_argument('--sim-area', type=float, nargs=4, metavar=('X0', 'X1', 'Y0', 'Y1'),
