@@ -105,3 +105,18 @@ def test_a_bad_start_up_parameter_is_one_line_and_exit_2(rule: str, names: tuple
     assert 'Traceback' not in out, out[-3000:]
     assert len(lines) == 1, out[-3000:]
     assert 'gaze_controller' in lines[0] and all(n in lines[0] for n in names), lines[0]
+
+
+def test_a_node_the_host_cannot_run_is_one_line_and_exit_1(tmp_path) -> None:
+    # what the sim does when there is no OpenGL: main_for(..., cannot_start=(RendererUnavailable,))
+    script = tmp_path / 'no_gl_node.py'
+    script.write_text(
+        'from vizzy_runtime.node_tools import main_for\n'
+        'class RendererUnavailable(RuntimeError):\n    pass\n'
+        'def make():\n    raise RendererUnavailable("no OpenGL backend (tried egl, osmesa)")\n'
+        'main_for(make, cannot_start=(RendererUnavailable,))()\n')
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=STARTUP_TIMEOUT)
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    assert proc.stderr.strip().splitlines() == [
+        '[no_gl_node.py] cannot start: no OpenGL backend (tried egl, osmesa)'], proc.stderr[-3000:]

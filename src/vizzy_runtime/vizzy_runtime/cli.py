@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -496,12 +496,14 @@ def main(argv: list[str] | None = None) -> int:
         return _die(str(err))
 
 
-def console_main() -> int:
-    """The `vizzy` program: main() in a process whose sockets bind 127.0.0.1 (loopback.py)."""
+def console_main() -> NoReturn:
+    """The `vizzy` program: main() in a process whose sockets bind 127.0.0.1 (loopback.py),
+    ended without the interpreter's finalization (process_exit.py says why)."""
     from .loopback import exec_loopback_bound
+    from .process_exit import run_then_exit
     exec_loopback_bound()
-    return main()
+    run_then_exit(main)
 
 
 if __name__ == '__main__':
-    sys.exit(console_main())
+    console_main()

@@ -30,6 +30,7 @@ import faulthandler
 import functools
 import gc
 import math
+import os
 import re
 import signal
 import sys
@@ -40,6 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from vizzy_runtime.loopback import exec_loopback_bound
+from vizzy_runtime.process_exit import run_then_exit
 from vizzy_runtime.ros import (
     ExternalShutdownException,
     FloatingPointRange,
@@ -567,11 +569,14 @@ def _spin_through_faults(node: Any) -> None:
                     f'{type(exc).__name__}: {exc}')
 
 
-def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
+def run(node_factory: Callable[[], Any], args: list[str] | None = None, *,
+        cannot_start: tuple[type[BaseException], ...] = ()) -> None:
     """The standard main: init, spin node_factory() until Ctrl-C, SIGTERM or shutdown, clean up.
 
     A node that cannot start because of its parameters or --ros-args (see startup_error_line)
-    ends with that one line on stderr and exit status 2, never a traceback.
+    ends with that one line on stderr and exit status 2, never a traceback. An exception of a
+    cannot_start class from node_factory() (what the host lacks, e.g. the sim's renderer) ends it
+    with '[<executable>] cannot start: <the exception>' and exit status 1.
 
     Signals: SIGINT and SIGTERM get a handler that raises nothing, installed before rclpy.init()
     so that the runtime's handler (rclpy's and the bundled one alike) chains to it instead of to
@@ -606,6 +611,10 @@ def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
         pass
     except Exception as exc:
         if not ((_signals_received or node is not None) and not rclpy.ok()):
+            if node is None and isinstance(exc, cannot_start):
+                name = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else 'node'
+                print(f'[{name}] cannot start: {exc}', file=sys.stderr, flush=True)
+                raise SystemExit(1) from None
             line = startup_error_line(exc) if node is None else None
             if line is None:
                 raise
@@ -623,12 +632,17 @@ def run(node_factory: Callable[[], Any], args: list[str] | None = None) -> None:
             rclpy.try_shutdown()
 
 
-def main_for(node_factory: Callable[[], Any]) -> Callable[..., None]:
-    """A console-script main(args=None) that runs node_factory (see run)."""
+def main_for(node_factory: Callable[[], Any], *,
+             cannot_start: tuple[type[BaseException], ...] = ()) -> Callable[..., None]:
+    """A console-script main(args=None) that runs node_factory (see run). As the process's
+    entry point (args None) it binds 127.0.0.1 first and ends the process without the
+    interpreter's finalization (process_exit.py says why)."""
     def main(args: list[str] | None = None) -> None:
-        if args is None:  # the process's entry point (a console script): bind 127.0.0.1 first
-            exec_loopback_bound()
-        run(node_factory, args)
+        if args is not None:
+            run(node_factory, args, cannot_start=cannot_start)
+            return
+        exec_loopback_bound()
+        run_then_exit(lambda: run(node_factory, None, cannot_start=cannot_start))
 
     name = getattr(node_factory, '__name__', 'the node')
     main.__doc__ = f'Run {name} until Ctrl-C (or SIGTERM, or shutdown).'

@@ -47,7 +47,6 @@ import array
 import contextlib
 import math
 import os
-import sys
 import threading
 import time
 from typing import Any
@@ -658,7 +657,8 @@ class SimNode(Node):
         return super().destroy_node()
 
 
-_main = main_for(SimNode)
+# a missing renderer or scene module ends the sim with one clear line
+main = main_for(SimNode, cannot_start=(RendererUnavailable, SceneUnavailable))
 
 
 def standby_prepare() -> None:
@@ -666,15 +666,6 @@ def standby_prepare() -> None:
     0.8 s on a loaded machine); select_backend caches the answer for the node's construction."""
     with contextlib.suppress(RendererUnavailable, ValueError):   # the node says why when it starts
         select_backend(os.environ.get('MUJOCO_GL', 'auto') or 'auto')
-
-
-def main(args: list[str] | None = None) -> None:
-    """Run the sim until Ctrl-C; a missing renderer or scene module ends it with one clear line."""
-    try:
-        _main(args)
-    except (RendererUnavailable, SceneUnavailable) as exc:
-        print(f'[sim] cannot start: {exc}', file=sys.stderr)
-        sys.exit(1)
 
 
 if __name__ == '__main__':
