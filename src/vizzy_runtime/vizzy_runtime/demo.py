@@ -228,5 +228,6 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == '__main__':
     from .loopback import exec_loopback_bound
+    from .process_exit import run_then_exit
     exec_loopback_bound()   # the demo's own recorder binds 127.0.0.1 too
-    sys.exit(main())
+    run_then_exit(main)     # its recorder's DDS entities must not be deleted in finalization
