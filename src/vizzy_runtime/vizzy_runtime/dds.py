@@ -78,6 +78,11 @@ def domain_id() -> int:
 _lock = threading.RLock()
 _participant: DomainParticipant | None = None
 _domain: Domain | None = None
+_closed = False
+
+
+class DdsClosedError(RuntimeError):
+    """The process is exiting: its DDS participant is gone and no new one is made."""
 
 
 def participant() -> DomainParticipant:
@@ -85,6 +90,8 @@ def participant() -> DomainParticipant:
     global _participant, _domain
     with _lock:
         if _participant is None:
+            if _closed:
+                raise DdsClosedError('DDS is shut down: the process is exiting')
             did = domain_id()
             if not lan_mode():
                 _domain = Domain(did, loopback_config())
@@ -93,15 +100,19 @@ def participant() -> DomainParticipant:
 
 
 def _delete_participant_at_exit() -> None:
-    """Delete the participant (and with it every reader, writer and listener) before the
-    interpreter tears itself down: a listener called from a Cyclone thread into a finalizing
-    interpreter crashes the process (seen as a rare SIGSEGV at node exit)."""
-    global _participant
+    """Delete the participant (and with it every reader, writer and listener), then the domain,
+    before the interpreter tears itself down, and make no new ones after: a listener called from
+    a Cyclone thread into a finalizing interpreter crashes the process (seen as a rare SIGSEGV at
+    node exit), and an entity deleted in finalization can wait for ever on such a thread
+    (process_exit.py). A daemon thread that publishes later gets DdsClosedError instead."""
+    global _participant, _domain, _closed
     with _lock:
-        if _participant is not None:
-            with contextlib.suppress(Exception):  # already gone
-                _participant._delete(_participant._ref)
-            _participant = None
+        _closed = True
+        for entity in (_participant, _domain):
+            if entity is not None:
+                with contextlib.suppress(Exception):  # already gone
+                    entity._delete(entity._ref)
+        _participant = _domain = None
 
 
 atexit.register(_delete_participant_at_exit)
