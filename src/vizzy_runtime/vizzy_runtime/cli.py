@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-import os
 import signal
 import sys
 import threading
@@ -46,10 +45,9 @@ def cmd_run(ns: argparse.Namespace) -> int:
     if ns.standby:
         _prepare_standby(ep.module)
     if ns.standby and not _standby_released():
-        # dismissed: nothing to clean up (no DDS yet, no files), and the interpreter's own exit
-        # would spend seconds collecting the imported modules (torch) for nothing
-        sys.stdout.flush()
-        os._exit(0)
+        # dismissed: nothing to clean up (no DDS yet, no files); console_main's exit skips the
+        # seconds the interpreter would spend collecting the imported modules (torch)
+        return 0
     sys.argv = [ns.executable, *ns.args]
     result = main()
     return int(result or 0)
