@@ -81,11 +81,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mot_planner_node.core.detector import Detector, HogDetector
-from mot_planner_node.core.egomotion import (
-    OrientationHistory,
-    rotation_between,
-    rotation_homography,
-)
+from mot_planner_node.core.egomotion import rotation_between, rotation_homography
 from mot_planner_node.core.ground_plane import ConsistencyGate, implied_size
 from mot_planner_node.core.planner import PlannerConfig
 from mot_planner_node.core.tracker import (
@@ -112,7 +108,7 @@ from vizzy_runtime.convert import (  # noqa: F401  the image reasons: this node'
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
-from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_runtime.tf import FramePoses, TransformBuffer, TransformListener
 from vizzy_vision.rays import back_project
 
 Image = message('sensor_msgs/msg/Image')
@@ -317,12 +313,12 @@ class MotPlannerNode(Node):
         self._persons = self._person_gate()
         self.last_implied_heights: dict[int, float] = {}    # track id -> [m], last check
         self._tf = TransformBuffer()
-        self._orientations: dict[str, OrientationHistory] = {}   # camera frame -> history
+        # the camera's pose in world_frame at each /tf stamp (ego-motion at the image's stamp)
+        self._poses = FramePoses(self._tf, self._p['world_frame'], max_age_s=TF_HISTORY_S)
         self._last_pose: np.ndarray | None = None   # camera in world_frame at the last frame
         self._noted: set[str] = set()
         self.frames_processed = 0
         self.frames_compensated = 0
-        self.frames_latest_tf = 0           # orientation from the latest tf, not the stamp's
         self.last_ego_rotation_deg = 0.0
         self.frames_dropped = 0
         self.resets = 0
@@ -375,6 +371,8 @@ class MotPlannerNode(Node):
                                float(p['person_height_ratio']))
 
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'world_frame' in changed:
+            self._poses.set_fixed_frame(changed['world_frame'])   # poses recorded anew
         if any(name in changed for name in PERSON_PARAMETERS):
             self._persons = self._person_gate()       # new criteria: judge from scratch
         if any(name in changed for name in DETECTOR_PARAMETERS):
@@ -399,15 +397,13 @@ class MotPlannerNode(Node):
         self.input_health.accept(self._info_topic)
 
     def _on_tf(self, msg: Any) -> None:
-        if not msg.transforms or not self._p['ego_motion']:
-            return
-        stamp = max(stamp_seconds(t.header.stamp) for t in msg.transforms)
-        for frame, history in self._orientations.items():
-            try:
-                pose = self._tf.lookup_transform(self._p['world_frame'], frame)
-            except LookupError:
-                continue
-            history.add(stamp, pose[:3, :3], pose[:3, 3])
+        if self._p['ego_motion']:
+            self._poses.on_tf(msg)
+
+    @property
+    def frames_latest_tf(self) -> int:
+        """Frames whose camera pose came from the latest tf, not from their stamp."""
+        return self._poses.latest_answers
 
     def _note_once(self, kind: str, text: str) -> None:
         if kind not in self._noted:
@@ -416,20 +412,7 @@ class MotPlannerNode(Node):
 
     def _camera_pose(self, header: Any) -> np.ndarray | None:
         """The image frame's pose (4x4) in world_frame at the image's stamp, or None."""
-        frame = header.frame_id.lstrip('/')
-        if not frame:
-            return None
-        history = self._orientations.get(frame)
-        if history is None:                    # first image from this frame: start recording
-            history = self._orientations[frame] = OrientationHistory(TF_HISTORY_S)
-        pose = history.pose_at(stamp_seconds(header.stamp))
-        if pose is None:    # no /tf around this stamp (static chain, no stamps): the latest
-            try:
-                pose = self._tf.lookup_transform(self._p['world_frame'], frame)
-            except LookupError:
-                return None
-            self.frames_latest_tf += 1
-        return pose
+        return self._poses.pose_at(header.frame_id, stamp_seconds(header.stamp))
 
     def _ego_homography(self, header: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
         """(H, the camera's pose now): H moves the beliefs from the last processed frame's

@@ -150,8 +150,8 @@ def test_bad_homography_is_refused_and_changes_nothing() -> None:
 
 
 def test_orientation_history_interpolates_at_image_stamps() -> None:
-    from mot_planner_node.core.egomotion import OrientationHistory
-    hist = OrientationHistory(max_age_s=1.0, max_extrapolation_s=0.05)
+    from vizzy_vision.pose_history import PoseHistory
+    hist = PoseHistory(max_age_s=1.0, max_extrapolation_s=0.05)
     assert hist.at(0.0) is None
     for t in (10.0, 10.01, 10.02):            # /tf at 100 Hz, panning at 5 deg per 10 ms
         hist.add(t, Rotation.from_euler('z', 500.0 * (t - 10.0), degrees=True).as_matrix())

@@ -326,10 +326,8 @@ def test_ego_motion_from_tf_keeps_tracks_through_a_head_turn(graph, ego_motion) 
         msg = _image(_blobs(seen, sizes), frame)
         tf_pub.publish(_tf(msg.header.stamp, rotation))
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        assert wait_until(lambda stamp=stamp: FRAME not in mot._orientations
-                          or (len(mot._orientations[FRAME])
-                              and mot._orientations[FRAME]._t[-1] >= stamp - 1e-6),
-                          TIMEOUT, spin=executor)
+        assert wait_until(lambda stamp=stamp: mot._poses.newest(FRAME) is None
+                          or mot._poses.newest(FRAME) >= stamp - 1e-6, TIMEOUT, spin=executor)
         assert _feed(camera, mot, executor, msg)
     assert wait_until(lambda: len(camera.tracks) >= 14, TIMEOUT, spin=executor)
     first, last = camera.tracks[0], camera.tracks[-1]

@@ -200,3 +200,39 @@ def test_listener_fills_the_buffer_from_tf_and_latched_tf_static(context) -> Non
         executor.remove_node(listener_node)
         broadcaster.destroy_node()
         listener_node.destroy_node()
+
+
+def test_frame_poses_answer_at_a_past_stamp_while_the_head_moves() -> None:
+    """The camera pans 1 deg per /tf message (10 ms): a pose asked at a past stamp is the one
+    the chain had then (interpolated), not the latest; a static chain gets the latest one."""
+    from vizzy_runtime.tf import FramePoses
+
+    buffer = TransformBuffer()
+    poses = FramePoses(buffer, 'base_link', max_age_s=1.0)
+    assert poses.pose_at('camera', 0.0) is None          # no chain yet
+    assert poses.newest('camera') is None
+
+    def pan(deg: float) -> np.ndarray:
+        a = math.radians(deg)
+        m = np.eye(4)
+        m[:2, :2] = [[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]
+        m[:3, 3] = (0.0, 0.0, 0.5)
+        return m
+
+    for i in range(10):
+        msg = stamped('base_link', 'camera', pan(float(i)))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 100, i * 10_000_000
+        tf = TFMessage(transforms=[msg])
+        buffer.set_transform_messages(tf.transforms)
+        poses.on_tf(tf)
+    assert poses.newest('camera') == pytest.approx(100.09)
+    past = poses.pose_at('camera', 100.035)               # between 3 and 4 deg
+    assert past is not None
+    assert math.degrees(math.atan2(past[1, 0], past[0, 0])) == pytest.approx(3.5)
+    assert poses.latest_answers == 0
+    # outside the records: the latest transform, counted
+    old = poses.pose_at('camera', 50.0)
+    assert old is not None and math.degrees(math.atan2(old[1, 0], old[0, 0])) == pytest.approx(9)
+    assert poses.latest_answers == 1
+    poses.set_fixed_frame('world')                        # another frame: records forgotten
+    assert poses.newest('camera') is None

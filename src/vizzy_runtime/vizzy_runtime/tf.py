@@ -5,7 +5,8 @@ needs no tf2_ros. It is deliberately smaller than tf2:
 
 - it keeps the **latest** transform of each frame (no history, no interpolation, no waiting for a
   time stamp): enough for a node that transforms a request when it arrives, like the gaze
-  controller, not for fusing old sensor data with a moving head;
+  controller. For fusing data stamped in the past with a moving head, FramePoses keeps the
+  poses of the frames a node asks about at each /tf message's stamp, and interpolates;
 - transforms are 4x4 homogeneous numpy matrices (float64), and lookup_transform returns one,
   not a geometry_msgs/TransformStamped.
 
@@ -30,8 +31,9 @@ from typing import Any
 import numpy as np
 
 from vizzy_vision.frames import matrices_from_transforms
+from vizzy_vision.pose_history import PoseHistory
 
-__all__ = ['TF_STATIC_TOPIC', 'TF_TOPIC', 'TransformBuffer', 'TransformListener']
+__all__ = ['FramePoses', 'TF_STATIC_TOPIC', 'TF_TOPIC', 'TransformBuffer', 'TransformListener']
 
 # Relative, so each namespaced head keeps its own tree (the multi-robot idiom); at the root
 # namespace they resolve to /tf and /tf_static, tf2_ros's names.
@@ -236,3 +238,77 @@ class TransformListener:
         self.buffer.set_transform_messages(msg.transforms)
         if self._on_update is not None:
             self._on_update(msg)
+
+
+class FramePoses:
+    """Poses of frames in a fixed frame at the stamps of /tf messages, for data stamped earlier.
+
+    Give :meth:`on_tf` to TransformListener's on_update. The simulator (and a robot's
+    robot_state_publisher) publishes the head's transforms together at each joint reading, so
+    after a message the buffer holds the chain as it was at that message's stamp: the pose of
+    every frame asked about so far is recorded then (vizzy_vision.pose_history.PoseHistory), and
+    :meth:`pose_at` interpolates between the records around a stamp. A frame starts being
+    recorded when first asked about; a frame whose chain is static (no /tf stamps) is answered
+    with the latest transform.
+    """
+
+    def __init__(self, buffer: TransformBuffer, fixed_frame: str, *, max_age_s: float = 2.0,
+                 max_extrapolation_s: float = 0.05) -> None:
+        self.buffer = buffer
+        self.fixed_frame = fixed_frame
+        self.max_age_s = float(max_age_s)
+        self.max_extrapolation_s = float(max_extrapolation_s)
+        self._histories: dict[str, PoseHistory] = {}
+        self._lock = threading.Lock()
+        self.latest_answers = 0      #: poses answered with the latest transform, not the stamp's
+
+    def set_fixed_frame(self, fixed_frame: str) -> None:
+        """Another fixed frame: the records so far are forgotten."""
+        with self._lock:
+            self.fixed_frame = fixed_frame
+            self._histories.clear()
+
+    def on_tf(self, msg: Any) -> None:
+        """Record the pose of each frame asked about, at the stamp of a /tf message."""
+        if not msg.transforms:
+            return
+        stamp = max(t.header.stamp.sec + 1e-9 * t.header.stamp.nanosec for t in msg.transforms)
+        with self._lock:
+            items = list(self._histories.items())
+            fixed = self.fixed_frame
+        for frame, history in items:
+            try:
+                pose = self.buffer.lookup_transform(fixed, frame)
+            except LookupError:
+                continue
+            with self._lock:
+                history.add(stamp, pose[:3, :3], pose[:3, 3])
+
+    def newest(self, frame: str) -> float | None:
+        """The stamp of frame's newest record, or None (not asked about yet, or none yet)."""
+        with self._lock:
+            history = self._histories.get(_strip(frame))
+            return history.newest if history is not None and len(history) else None
+
+    def pose_at(self, frame: str, stamp: float) -> np.ndarray | None:
+        """The pose (4x4) of frame in the fixed frame at stamp [s]: interpolated between the
+        records around it, else the latest transform (counted in latest_answers), else None
+        (no chain between the frames)."""
+        frame = _strip(frame)
+        if not frame:
+            return None
+        with self._lock:
+            history = self._histories.get(frame)
+            if history is None:
+                history = self._histories[frame] = PoseHistory(self.max_age_s,
+                                                               self.max_extrapolation_s)
+            pose = history.pose_at(stamp)
+            fixed = self.fixed_frame
+        if pose is not None:
+            return pose
+        try:
+            pose = self.buffer.lookup_transform(fixed, frame)
+        except LookupError:
+            return None
+        self.latest_answers += 1
+        return pose
