@@ -4,8 +4,9 @@ SETUP_STAMP := .venv/.setup-stamp
 SETUP_INPUTS := requirements.txt scripts/setup.sh $(wildcard src/*/setup.py)
 # The real-rclpy tier (.venv-ros); its stamp is outside the venv since setup may skip the venv.
 ROS_STAMP := build/.setup-ros-stamp
-ROS_INPUTS := $(SETUP_INPUTS) requirements-ros.txt scripts/setup_ros.sh scripts/gen_tf2_msgs.py \
-	msgs/CMakeLists.txt msgs/package.xml $(wildcard msgs/msg/*.msg)
+ROS_INPUTS := $(SETUP_INPUTS) requirements-ros.txt scripts/setup_ros.sh scripts/gen_interfaces.py \
+	msgs/CMakeLists.txt msgs/package.xml $(wildcard msgs/msg/*.msg) \
+	$(wildcard src/vizzy_runtime/vizzy_runtime/interfaces/*/msg/*.msg)
 
 .PHONY: setup demo test lint bench clean
 

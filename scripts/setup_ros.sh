@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The real-rclpy tier: .venv-ros = the pinned project dependencies (requirements.txt) + ROS 2 Jazzy's
-# own rclpy and message wheels (requirements-ros.txt) + active_vision_msgs and tf2_msgs built from
-# source with cmake + the workspace packages (editable). `.venv-ros/bin/python` then imports the real
+# own rclpy and message wheels (requirements-ros.txt) + active_vision_msgs, tf2_msgs and vision_msgs
+# (no wheels; scripts/gen_interfaces.py writes their sources) built with cmake + the workspace
+# packages (editable). `.venv-ros/bin/python` then imports the real
 # rclpy (Fast DDS) and every node executable in .venv-ros/bin runs on it.
 #
 # Where the wheels do not exist (they are x86_64 Linux, CPython 3.10-3.13 only) this says so in one
@@ -67,14 +68,16 @@ build_interfaces() {  # name source_dir
   fi
 }
 
-"$PY" scripts/gen_tf2_msgs.py build/ros/tf2_msgs_src
-build_interfaces tf2_msgs build/ros/tf2_msgs_src
+for pkg in tf2_msgs vision_msgs; do
+  "$PY" scripts/gen_interfaces.py "$pkg" "build/ros/${pkg}_src"
+  build_interfaces "$pkg" "build/ros/${pkg}_src"
+done
 build_interfaces active_vision_msgs msgs
 
 echo "setup-ros: installing the workspace packages (editable)"
 for pkg in src/*/; do
   [ -f "$pkg/setup.py" ] && "$PY" -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e "$pkg"
 done
-"$PY" -c 'import rclpy, tf2_msgs.msg, active_vision_msgs.msg, vizzy_runtime.ros as r; assert r.USING_REAL_ROS' \
+"$PY" -c 'import rclpy, tf2_msgs.msg, vision_msgs.msg, active_vision_msgs.msg, vizzy_runtime.ros as r; assert r.USING_REAL_ROS' \
   || { echo "setup-ros: $VENV does not import the real rclpy and our messages" >&2; exit 1; }
 echo "setup-ros: done ($VENV: real rclpy $("$PY" -c 'from importlib.metadata import version; print(version("ros-jazzy-rclpy"))'), rmw_fastrtps_cpp)"

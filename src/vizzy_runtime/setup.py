@@ -8,6 +8,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    # Jazzy interface definitions rosbags' typestore lacks (vision_msgs), read by msgs.py
+    package_data={package_name: ['interfaces/*/msg/*.msg']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -1,7 +1,8 @@
 """Message classes and CDR: our bytes must be exactly what ROS 2's DDS middlewares send.
 
 Cyclone DDS's own (independent, element-by-element) XCDR1 serializer is the reference: for every
-message type the graph uses, ours included, random contents serialize byte-identically.
+message type the graph uses, ours and the bundled vision_msgs included, random contents serialize
+byte-identically.
 """
 
 import random
@@ -21,6 +22,8 @@ GRAPH_TYPES = [
     'rmw_dds_common/msg/ParticipantEntitiesInfo',
 ]
 OURS = msgs.registry().ours
+# vision_msgs (shipped definitions): /foveation/detections_2d, /objects and the rest of the package
+BUNDLED = msgs.registry().bundled
 
 _NP = {'bool': np.bool_, 'byte': np.int8, 'char': np.uint8, 'int8': np.int8, 'uint8': np.uint8,
        'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32,
@@ -83,7 +86,7 @@ def _to_cyclone_field(value, desc):
     return [_to_cyclone_field(v.item() if isinstance(v, np.generic) else v, sub) for v in value]
 
 
-@pytest.mark.parametrize('typename', GRAPH_TYPES + OURS)
+@pytest.mark.parametrize('typename', GRAPH_TYPES + OURS + BUNDLED)
 def test_cdr_identical_to_cyclone(typename):
     rng = random.Random(typename)
     for _ in range(5):
@@ -98,7 +101,8 @@ def test_cdr_identical_to_cyclone(typename):
 
 def test_our_interfaces_are_loaded():
     expected = {'GazeCommand', 'GazeState', 'FoveatedDetection', 'FoveatedDetectionArray',
-                'Cylinder', 'CylinderArray', 'Track', 'TrackArray', 'AttentionRegions'}
+                'Cylinder', 'CylinderArray', 'Track', 'TrackArray', 'AttentionRegions',
+                'MapObject', 'MapObjectArray'}
     assert {t.split('/')[-1] for t in OURS} >= expected
 
 

@@ -30,6 +30,7 @@ JAZZY_PACKAGES = frozenset({
     'launch_ros', 'rcl_interfaces', 'rclpy', 'rmw_dds_common', 'rosgraph_msgs',
     'rosidl_default_generators', 'rosidl_default_runtime', 'sensor_msgs', 'std_msgs', 'tf2_msgs',
     'visualization_msgs', 'diagnostic_msgs', 'robot_state_publisher', 'rviz2',
+    'vision_msgs',  # ros-jazzy-vision-msgs 4.1.1 (ros-perception/vision_msgs, jazzy branch)
 })
 
 # System rosdep keys, each checked in ros/rosdistro rosdep/python.yaml (stored copy at commit
@@ -261,7 +262,7 @@ def test_nodes_import_without_the_simulator() -> None:
     # controller; a training program there ends with one line naming what to install.
     block = "import sys; sys.modules.update(mujoco=None, vizzy_sim_bridge=None); "
     modules = ['vizzy_gaze.gaze_controller_node', 'foveation_node.node', 'stereo_ses_node.node',
-               'cylinder_detector_node.node', 'mot_planner_node.node']
+               'cylinder_detector_node.node', 'mot_planner_node.node', 'vizzy_object_map.node']
     code = block + ''.join(f'import {m}; ' for m in modules)
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]

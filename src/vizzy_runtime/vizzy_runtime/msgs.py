@@ -1,7 +1,11 @@
 """Message types for the bundled runtime: rosbags' Jazzy typestore plus our msgs/msg/*.msg.
 
 Nothing here is copied by hand from a .msg file: standard types come from rosbags'
-ROS 2 Jazzy store, ours are parsed at import time from the interface package.
+ROS 2 Jazzy store, ours are parsed at import time from the interface package. Jazzy packages the
+store lacks (BUNDLED_PACKAGES: vision_msgs 4.1.1) are parsed from .msg files shipped as this
+package's data (interfaces/<pkg>/msg/*.msg, the released package's fields, so the RIHS01 hashes
+are the released ones: test_vision_msgs.py); they are no colcon package, so they never shadow apt
+ROS 2's own vision_msgs.
 
 Each type gets an rclpy-like class (default-constructible, keyword arguments, primitive
 sequences as numpy arrays) that rosbags' generated CDR code both fills on deserialization
@@ -13,6 +17,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Sequence
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +26,8 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 OUR_PACKAGE = 'active_vision_msgs'
+# ROS 2 Jazzy interface packages that rosbags' Jazzy store lacks, shipped as package data.
+BUNDLED_PACKAGES = ('vision_msgs',)
 
 # 'byte' is int8 as in rosbags' generated code, so built and received messages compare equal.
 _NUMPY = {
@@ -42,6 +49,21 @@ def msgs_dir() -> Path:
             return cand
     raise FileNotFoundError(
         'active_vision_msgs definitions not found: set VIZZY_MSGS_DIR to the msgs/msg folder')
+
+
+def bundled_msg_texts(package: str) -> dict[str, str]:
+    """Type name (vision_msgs/msg/Detection2D) -> .msg text, for a package of BUNDLED_PACKAGES
+    (vizzy_runtime's package data interfaces/<package>/msg/*.msg)."""
+    if package not in BUNDLED_PACKAGES:
+        raise ValueError(f'no bundled interface package {package!r} (have '
+                         f'{", ".join(BUNDLED_PACKAGES)})')
+    folder = resources.files('vizzy_runtime') / 'interfaces' / package / 'msg'
+    texts = {f'{package}/msg/{entry.name[:-4]}': entry.read_text(encoding='utf-8')
+             for entry in folder.iterdir() if entry.name.endswith('.msg')}
+    if not texts:
+        raise FileNotFoundError(f'{package}: no .msg files in {folder} (vizzy_runtime installed '
+                                'without its package data?)')
+    return dict(sorted(texts.items()))
 
 
 def normalize_type_name(name: str) -> str:
@@ -78,6 +100,8 @@ class _Registry:
         self._classes: dict[str, type] = {}
         self.ours: list[str] = []
         self._load_ours()
+        self.bundled: list[str] = []    # the types of BUNDLED_PACKAGES
+        self._load_bundled()
 
     def _load_ours(self) -> None:
         try:
@@ -89,6 +113,14 @@ class _Registry:
             texts.update(get_types_from_msg(path.read_text(), f'{OUR_PACKAGE}/msg/{path.stem}'))
         self.store.register(texts)
         self.ours = sorted(texts)
+
+    def _load_bundled(self) -> None:
+        texts = {}
+        for package in BUNDLED_PACKAGES:
+            for name, text in bundled_msg_texts(package).items():
+                texts.update(get_types_from_msg(text, name))
+        self.store.register(texts)
+        self.bundled = sorted(texts)
 
     def fields(self, typename: str) -> list[tuple[str, Any]]:
         return self.store.fielddefs[typename][1]
