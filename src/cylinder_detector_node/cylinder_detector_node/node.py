@@ -14,6 +14,10 @@ publishes
   /cylinders          active_vision_msgs/CylinderArray, header = the cloud's
   /cylinders/markers  visualization_msgs/MarkerArray: DELETEALL, then one CYLINDER per cylinder
                       (coloured red -> green by confidence) and a TEXT label above it
+  /cylinders/clusters vision_msgs/Detection3DArray, header = the cloud's: every object the
+                      segmentation found on the table, cylinder or not (cluster_array: a box
+                      aligned with the table, and P(cylinder) when classified); the object map
+                      places its objects with them
   /cylinders/overlay  sensor_msgs/Image rgb8 (if publish_overlay and the cloud's colour image is
                       there): the cylinders' outlines, axes and sizes projected on that image
                       (intrinsics fitted to the organized cloud itself, core.overlay), a legend
@@ -70,7 +74,7 @@ import torch
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
-from cylinder_detector_node.core.fitting import METHODS, FitParams
+from cylinder_detector_node.core.fitting import METHODS, FitParams, rotation_to_z
 from cylinder_detector_node.core.fitting import Cylinder as FittedCylinder
 from cylinder_detector_node.core.overlay import draw_cylinders, intrinsics_from_organized
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
@@ -102,7 +106,7 @@ from vizzy_runtime.node_tools import (
 )
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
-from vizzy_vision.frames import quaternion_z_to
+from vizzy_vision.frames import matrix_to_quaternion, quaternion_z_to
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 CylinderMsg = message('active_vision_msgs/msg/Cylinder')
@@ -110,6 +114,9 @@ PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 Image = message('sensor_msgs/msg/Image')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
+Detection3D = message('vision_msgs/msg/Detection3D')
+Detection3DArray = message('vision_msgs/msg/Detection3DArray')
+ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
 
 # Relative names: the graph remaps the generic inputs (points:=vizzy/rgbd/points, ...) and the
 # node's namespace places everything; logs print the resolved names.
@@ -118,6 +125,7 @@ IMAGE_TOPIC = 'image_raw'
 IMAGE_BUFFER = 8
 CYLINDERS_TOPIC = 'cylinders'
 MARKERS_TOPIC = 'cylinders/markers'
+CLUSTERS_TOPIC = 'cylinders/clusters'
 OVERLAY_TOPIC = 'cylinders/overlay'
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 NO_XYZ = 'no xyz fields'
@@ -297,6 +305,37 @@ def cylinder_array(header: Any, cylinders: list[FittedCylinder],
     return out
 
 
+def cluster_array(header: Any, det: Detection | None) -> Any:
+    """Every object the segmentation found on the table as a vision_msgs/Detection3DArray in the
+    cloud's frame: per cluster the box of its points aligned with the table (z along the table
+    normal; size = extents), id its index, and, when the pre-attention CNN saw it, one result
+    'cylinder' with P(cylinder)."""
+    out = Detection3DArray(header=header)
+    if det is None or det.plane is None:
+        return out
+    rot = rotation_to_z(np.asarray(det.plane[:3], np.float64))   # cloud -> table frame
+    quat = matrix_to_quaternion(rot.T)                           # the table frame in the cloud's
+    for i, (cl, p) in enumerate(zip(det.all_clusters, det.cluster_probabilities, strict=True)):
+        pts = np.asarray(cl.points, np.float64) @ rot.T
+        if len(pts) == 0:
+            continue
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        centre = rot.T @ (0.5 * (lo + hi))
+        d = Detection3D(header=header, id=str(i))
+        c = d.bbox.center
+        c.position.x, c.position.y, c.position.z = (float(v) for v in centre)
+        c.orientation.x, c.orientation.y, c.orientation.z, c.orientation.w = (float(v)
+                                                                              for v in quat)
+        d.bbox.size.x, d.bbox.size.y, d.bbox.size.z = (float(v) for v in hi - lo)
+        if p is not None:
+            hyp = ObjectHypothesisWithPose()
+            hyp.hypothesis.class_id, hyp.hypothesis.score = 'cylinder', float(p)
+            hyp.pose.pose = c
+            d.results.append(hyp)
+        out.detections.append(d)
+    return out
+
+
 def marker_array(header: Any, cylinders: list[FittedCylinder],
                  probabilities: list[float | None] | None = None) -> Any:
     """DELETEALL, then a CYLINDER and a TEXT label per cylinder, in the cloud's frame."""
@@ -366,6 +405,7 @@ class CylinderDetectorNode(Node):
 
         self._pub = self.create_publisher(CylinderArray, CYLINDERS_TOPIC, 10)
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, 10)
+        self._clusters_pub = self.create_publisher(Detection3DArray, CLUSTERS_TOPIC, 10)
         self._overlay_pub = self.create_publisher(Image, OVERLAY_TOPIC, qos_profile_sensor_data)
         self._intrinsics: dict[tuple[str, tuple[int, ...]], np.ndarray | None] = {}
         # resolved names, for log lines
@@ -390,7 +430,8 @@ class CylinderDetectorNode(Node):
                       f'{self._image_sub.topic_name})' if p['use_classifier'] else 'off')
         self.get_logger().info(
             f'detecting cylinders in {self._cloud_sub.topic_name} onto {self._pub.topic_name} and '
-            f'{self._marker_pub.topic_name}: '
+            f'{self._marker_pub.topic_name} (every object on the table on '
+            f'{self._clusters_pub.topic_name}): '
             f'method {p["method"]}, bias {p["bias"]}, N_d {p["n_directions"]}, radius '
             f'{p["radius_min_m"]:g}-{p["radius_max_m"]:g} m, '
             f'min confidence {p["min_confidence"]:g}, classifier {classifier}')
@@ -469,6 +510,7 @@ class CylinderDetectorNode(Node):
         except CloudRefused as exc:
             self.input_health.refuse(self._cloud_topic, exc.reason, f'no cylinders: {exc}')
             self._publish(msg.header, [])
+            publish_from_thread(self, self._clusters_pub, cluster_array(msg.header, None))
             return None
         seg, fit = self._params
         image, classifier, skipped = None, None, None
@@ -497,6 +539,7 @@ class CylinderDetectorNode(Node):
             self._warn_throttled('pipeline', f'{self._cloud_topic}: no cylinders: '
                                              f'{"; ".join(det.messages)}')
         self._publish(msg.header, det.cylinders, det.probabilities)
+        publish_from_thread(self, self._clusters_pub, cluster_array(msg.header, det))
         if self._p['publish_overlay']:
             self._publish_overlay(msg.header, xyz, image, det.cylinders)
         self.input_health.accept(self._cloud_topic)

@@ -135,3 +135,37 @@ def test_up_comes_from_tf_else_the_clouds_minus_y() -> None:
         assert ros_node.cloud_up('elsewhere') == CAMERA_UP    # not in the tree
         ros_node._p['up_frame'] = ''                            # no up frame: -y
         assert ros_node.cloud_up('cam') == CAMERA_UP
+
+
+def test_clusters_go_out_as_table_aligned_boxes() -> None:
+    """Each segmented object becomes a Detection3D whose box, turned by its orientation, holds
+    the object's points and whose z axis is the table normal."""
+    from cylinder_detector_node.core.pipeline import Detection
+    from cylinder_detector_node.core.segmentation import Cluster
+    from vizzy_vision.frames import rotation_matrix
+    rng = np.random.default_rng(3)
+    normal = np.array([0.0, -0.8, -0.6])                 # a camera looking down at a table
+    # a 10 x 6 x 12 cm box standing on the table, in the table frame, then in the camera's
+    local = rng.uniform([-0.05, -0.03, 0.0], [0.05, 0.03, 0.12], (500, 3))
+    from cylinder_detector_node.core.fitting import rotation_to_z
+    to_table = rotation_to_z(normal)
+    centre = np.array([0.1, 0.2, 1.0])
+    points = local @ to_table + centre
+    det = Detection(plane=np.array([*normal, 0.5]),
+                    all_clusters=[Cluster(points, points.min(0), points.max(0))],
+                    cluster_probabilities=[0.25])
+    header = node.CylinderArray().header
+    header.frame_id = 'rgbd'
+    arr = node.cluster_array(header, det)
+    assert arr.header.frame_id == 'rgbd' and len(arr.detections) == 1
+    d = arr.detections[0]
+    size = np.array([d.bbox.size.x, d.bbox.size.y, d.bbox.size.z])
+    np.testing.assert_allclose(size, [0.1, 0.06, 0.12], atol=0.005)
+    o = d.bbox.center.orientation
+    r = rotation_matrix((o.x, o.y, o.z, o.w))
+    np.testing.assert_allclose(r[:, 2], normal, atol=1e-9)     # the box's z: the table normal
+    c = d.bbox.center.position
+    inside = (points - [c.x, c.y, c.z]) @ r                     # box coordinates
+    assert np.all(np.abs(inside) <= size / 2 + 1e-9)
+    assert [(h.hypothesis.class_id, h.hypothesis.score) for h in d.results] == [('cylinder', 0.25)]
+    assert node.cluster_array(header, None).detections == []   # a refused cloud: none

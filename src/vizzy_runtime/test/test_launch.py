@@ -30,7 +30,8 @@ from vizzy_runtime.launcher import (
 from vizzy_runtime.testing import STOP_GRACE_S, bound_addresses, wait_until
 
 OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
-           '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states', '/clock'}
+           '/objects', '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states',
+           '/clock'}
 
 
 # on the real tier every node runs on the real rclpy (VIZZY_RUNTIME=ros is inherited)
@@ -38,7 +39,7 @@ OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/
 def test_graph_starts_and_stops_cleanly(tmp_path):
     graph = load_graph(default_graph_file())
     assert {n.name for n in graph.nodes} == {'sim', 'gaze_controller', 'foveation', 'stereo_ses',
-                                             'cylinder_detector', 'mot_planner'}
+                                             'cylinder_detector', 'mot_planner', 'object_map'}
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
     launcher = Launcher(graph, output=log, grace_s=STOP_GRACE_S)
     disc = dds.Discovery()

@@ -49,17 +49,22 @@ DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {
     'foveation': {('sub', '/vizzy/left/image_raw'), ('sub', '/vizzy/left/camera_info'),
                   ('sub', '/gaze/state'), ('pub', '/foveation/image'),
                   ('pub', '/foveation/image/compressed'), ('pub', '/foveation/detections'),
-                  ('pub', '/foveation/overlay'), ('pub', '/gaze/command')},
+                  ('pub', '/foveation/detections_2d'), ('pub', '/foveation/overlay'),
+                  ('pub', '/gaze/command')},
     'stereo_ses': TF | {('sub', f'/vizzy/{e}/{t}') for e in ('left', 'right')
                         for t in ('image_raw', 'camera_info')}
     | {('sub', '/gaze/state'), ('pub', '/stereo/points'), ('pub', '/ses/cells'),
        ('pub', '/gaze/command')},
     'cylinder_detector': TF | {('sub', '/vizzy/rgbd/points'), ('sub', '/vizzy/rgbd/image_raw'),
                                ('pub', '/cylinders'), ('pub', '/cylinders/markers'),
-                               ('pub', '/cylinders/overlay')},
+                               ('pub', '/cylinders/overlay'), ('pub', '/cylinders/clusters')},
     'mot_planner': TF | {('sub', '/vizzy/left/image_raw'), ('sub', '/vizzy/left/camera_info'),
                          ('sub', '/gaze/state'), ('pub', '/mot/tracks'), ('pub', '/mot/attention'),
                          ('pub', '/mot/overlay'), ('pub', '/gaze/command')},
+    'object_map': TF | {('sub', '/foveation/detections'), ('sub', '/vizzy/left/camera_info'),
+                        ('sub', '/cylinders/clusters'), ('sub', '/cylinders'),
+                        ('sub', '/stereo/points'), ('pub', '/objects'),
+                        ('pub', '/objects/markers'), ('pub', '/objects/map')},
 }
 SMALL_SIM = {'width': 160, 'height': 120, 'rgbd_width': 64, 'rgbd_height': 48, 'rate_hz': 10.0,
              'rgbd_rate_hz': 1.0}
@@ -87,6 +92,9 @@ def _factory(name: str) -> tuple[Callable[..., Any], list[Any]]:
     if name == 'cylinder_detector':
         from cylinder_detector_node.node import CylinderDetectorNode
         return CylinderDetectorNode, []
+    if name == 'object_map':
+        from vizzy_object_map.node import ObjectMapNode
+        return ObjectMapNode, []
     from mot_planner_node.node import MotPlannerNode
     return MotPlannerNode, []
 

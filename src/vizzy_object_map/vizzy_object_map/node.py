@@ -1,0 +1,482 @@
+"""The `object_map` node: persistent labelled 3D objects from what the other nodes see.
+
+Topic names are relative; the graph remaps camera_info to the left camera's, so below are the
+resolved defaults. The map lives in map_frame (base_link, REP 103: x forward, z up).
+
+Subscribes
+  /foveation/detections     active_vision_msgs/FoveatedDetectionArray: recognitions. Each
+                            detection of pass min_pass or later names what lies under its
+                            fixation (fixation_u, fixation_v): the classifier learned from views
+                            foveated at an object, labelled with the object under the fovea
+  /vizzy/left/camera_info   sensor_msgs/CameraInfo: K and size of the detections' camera
+  /cylinders/clusters       vision_msgs/Detection3DArray: the objects segmented on a support
+                            surface (cylinder_detector), boxes in the cloud's frame
+  /cylinders                active_vision_msgs/CylinderArray: fitted cylinders, cloud frame
+  /stereo/points            sensor_msgs/PointCloud2 (x y z, left optical frame): depth for a
+                            recognition that falls on no known object (use_stereo_depth)
+  /tf, /tf_static           poses of the sensors at each input's stamp (tf.FramePoses)
+
+core.object_map.ObjectMap fuses them (its docstring: association, fusion, naming, fading,
+merging) and, every publish_period_s of the node's clock (sim time in the graph), publishes
+
+  /objects          vision_msgs/Detection3DArray in map_frame: the confirmed objects; per
+                    object header.stamp = last seen, id = the persistent id, bbox = centre and
+                    axis-aligned size, results = its names best first (class_id the label, score
+                    its share of the name evidence) with the position and its covariance in
+                    pose (the orientation is unknown: identity, rotational variance -1 as REP
+                    says for unknown)
+  /objects/markers  visualization_msgs/MarkerArray: DELETEALL, then a box per established
+                    object (green when confirmed, grey while unnamed) and its label with share
+                    and observation count
+  /objects/map      active_vision_msgs/MapObjectArray: every object, with what Detection3D has
+                    no field for (observation counts, first and last seen, established,
+                    confirmed)
+  /diagnostics      the node's input health
+
+The three outputs are reliable and transient local (depth 1), like a map: a late subscriber gets
+the current map at once.
+
+Refused inputs (vizzy_runtime.input_health.InputHealth): 'no camera_info' (detections before a
+usable K, or of another size), 'unusable K', 'no frame_id', 'no pose' (tf has no chain from
+map_frame to the input's frame), 'non-finite values' (a box or cylinder with NaN), 'no xyz
+fields' (a point cloud without x, y, z), 'failed on a ...: <ExcType>' (node_tools.guarded).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from vizzy_object_map.core.object_map import (
+    CameraView,
+    GeometryObservation,
+    MapConfig,
+    MapObject,
+    ObjectMap,
+    Recognition,
+)
+from vizzy_object_map.core.observations import (
+    cluster_observation,
+    cylinder_observation,
+    surface_point_at,
+)
+from vizzy_runtime.convert import ConversionError, pointcloud2_to_array, stamp_seconds
+from vizzy_runtime.input_health import InputHealth
+from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.ros import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    Node,
+    QoSProfile,
+    ReliabilityPolicy,
+    message,
+)
+from vizzy_runtime.tf import FramePoses, TransformBuffer, TransformListener
+from vizzy_vision.frames import rotation_matrix
+
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
+PointCloud2 = message('sensor_msgs/msg/PointCloud2')
+FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
+CylinderArray = message('active_vision_msgs/msg/CylinderArray')
+MapObjectMsg = message('active_vision_msgs/msg/MapObject')
+MapObjectArray = message('active_vision_msgs/msg/MapObjectArray')
+Detection3D = message('vision_msgs/msg/Detection3D')
+Detection3DArray = message('vision_msgs/msg/Detection3DArray')
+ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
+Marker = message('visualization_msgs/msg/Marker')
+MarkerArray = message('visualization_msgs/msg/MarkerArray')
+TimeMsg = message('builtin_interfaces/msg/Time')
+
+DETECTIONS_TOPIC = 'foveation/detections'
+CAMERA_INFO_TOPIC = 'camera_info'
+CLUSTERS_TOPIC = 'cylinders/clusters'
+CYLINDERS_TOPIC = 'cylinders'
+STEREO_TOPIC = 'stereo/points'
+OBJECTS_TOPIC = 'objects'
+MARKERS_TOPIC = 'objects/markers'
+MAP_TOPIC = 'objects/map'
+# Refusal reasons (InputHealth counter keys)
+NO_CAMERA_INFO = 'no camera_info'
+UNUSABLE_K = 'unusable K'
+NO_FRAME_ID = 'no frame_id'
+NO_POSE = 'no pose'
+NON_FINITE = 'non-finite values'
+NO_XYZ = 'no xyz fields'
+MAP_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: a stereo cloud is kept this long for recognitions that find no object [s]
+STEREO_MAX_POINTS = 20000
+
+_DEFAULTS = MapConfig()
+# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
+PARAMETERS: tuple[Param, ...] = (
+    Param('map_frame', 'base_link', 'Frame of the map (fixed to the robot, z up).',
+          constraints='not empty'),
+    Param('publish_period_s', 0.5, 'Publish the map (and forget faded objects) this often [s], '
+          'in (0, 60].', '(0, 60]'),
+    Param('association_radius_m', _DEFAULTS.association_radius_m,
+          'An observation within this of an object\'s centre is that object [m], in (0, 1].',
+          '(0, 1]'),
+    Param('merge_radius_m', _DEFAULTS.merge_radius_m,
+          'Objects whose centres come closer than this become one [m], in (0, 1].', '(0, 1]'),
+    Param('min_recognition_score', _DEFAULTS.min_recognition_score,
+          'Recognitions scoring less are ignored, in [0, 1].', '[0, 1]'),
+    Param('min_pass', 1, 'Use the detections of this foveation pass and later (0: the first, '
+          'at the gaze fixation; 1: the refined one at each box centre), in [0, 255].',
+          '[0, 255]'),
+    Param('min_recognitions', _DEFAULTS.min_recognitions,
+          'An object geometry has seen is confirmed after this many recognitions named it, in '
+          '[1, 1000].', '[1, 1000]'),
+    Param('min_recognitions_without_geometry', _DEFAULTS.min_recognitions_without_geometry,
+          'An object only recognitions placed (stereo depth) is confirmed after this many, in '
+          '[1, 1000].', '[1, 1000]'),
+    Param('min_label_share', _DEFAULTS.min_label_share,
+          'A confirmed object\'s name holds at least this share of its name evidence (the '
+          'reject label counting against it), in [0, 1].', '[0, 1]'),
+    Param('established_geometry', _DEFAULTS.established_geometry,
+          'Objects segmented this many times are kept while out of view, in [1, 1000].',
+          '[1, 1000]'),
+    Param('tentative_timeout_s', _DEFAULTS.tentative_timeout_s,
+          'Objects neither established nor confirmed are forgotten this long after they were '
+          'last seen [s], in (0, 3600].', '(0, 3600]'),
+    Param('reject_label', _DEFAULTS.reject_label,
+          'The recogniser\'s "nothing here" label: it names nothing and counts against names.'),
+    Param('use_stereo_depth', True,
+          f'Place recognitions that fall on no known object with the depth of {STEREO_TOPIC}.'),
+    Param('stereo_max_age_s', 3.0,
+          f'Use a {STEREO_TOPIC} cloud for at most this long after its stamp [s], in (0, 60].',
+          '(0, 60]'),
+    Param('depth_radius_px', 6.0, 'Depth points within this of a recognition\'s pixel place it '
+          '[px], in (0, 100].', '(0, 100]'),
+    Param('tf_history_s', 5.0, 'How long the sensors\' poses are kept for inputs stamped in the '
+          'past [s], in (0, 60].', '(0, 60]'),
+)
+MAP_PARAMETERS = ('association_radius_m', 'merge_radius_m', 'min_recognition_score',
+                  'min_recognitions', 'min_recognitions_without_geometry', 'min_label_share',
+                  'established_geometry', 'tentative_timeout_s', 'reject_label')
+
+
+def check_parameter(name: str, value: Any) -> str | None:
+    """Why value is not acceptable for parameter name (beyond the table's ranges), or None."""
+    if name == 'map_frame' and not value.strip('/'):
+        return 'map_frame must be a frame id'
+    return None
+
+
+def map_config(p: dict[str, Any]) -> MapConfig:
+    return MapConfig(**{name: p[name] for name in MAP_PARAMETERS})
+
+
+def stamp_msg(t: float) -> Any:
+    sec = math.floor(t)
+    return TimeMsg(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
+
+
+def camera_k(msg: Any) -> np.ndarray | None:
+    """K (3, 3) of a CameraInfo if usable (finite, fx and fy > 0), else None."""
+    k = np.asarray([float(v) for v in msg.k], np.float64)
+    if k.size != 9 or not np.isfinite(k).all() or k[0] <= 0 or k[4] <= 0:
+        return None
+    return k.reshape(3, 3)
+
+
+def _covariance6(cov3: np.ndarray) -> list[float]:
+    """PoseWithCovariance's 6x6 (row-major) from a position covariance; orientation unknown."""
+    out = np.zeros((6, 6))
+    out[:3, :3] = cov3
+    out[3, 3] = out[4, 4] = out[5, 5] = -1.0
+    return [float(v) for v in out.ravel()]
+
+
+def detection3d_array(objects: list[MapObject], reject_label: str, frame_id: str,
+                      stamp: Any) -> Any:
+    """The confirmed objects as a vision_msgs/Detection3DArray (module docstring)."""
+    out = Detection3DArray()
+    out.header.frame_id, out.header.stamp = frame_id, stamp
+    for obj in objects:
+        det = Detection3D(id=str(obj.id))
+        det.header.frame_id, det.header.stamp = frame_id, stamp_msg(obj.last_seen)
+        c = det.bbox.center
+        c.position.x, c.position.y, c.position.z = (float(v) for v in obj.position)
+        c.orientation.w = 1.0
+        det.bbox.size.x, det.bbox.size.y, det.bbox.size.z = (float(v) for v in obj.size)
+        for label, share in obj.ranked_labels(reject_label):
+            hyp = ObjectHypothesisWithPose()
+            hyp.hypothesis.class_id, hyp.hypothesis.score = label, float(share)
+            hyp.pose.pose = c
+            hyp.pose.covariance = _covariance6(obj.covariance)
+            det.results.append(hyp)
+        out.detections.append(det)
+    return out
+
+
+def map_object_array(object_map: ObjectMap, frame_id: str, stamp: Any) -> Any:
+    """Every object as an active_vision_msgs/MapObjectArray."""
+    out = MapObjectArray()
+    out.header.frame_id, out.header.stamp = frame_id, stamp
+    reject = object_map.config.reject_label
+    for obj in object_map.objects():
+        ranked = obj.ranked_labels(reject)
+        label, share = obj.label(reject)
+        m = MapObjectMsg(id=str(obj.id), label=label, label_share=float(share),
+                         labels=[k for k, _ in ranked],
+                         observations=obj.observations, recognitions=obj.recognitions,
+                         geometry_observations=obj.geometry,
+                         established=object_map.is_established(obj),
+                         confirmed=object_map.is_confirmed(obj))
+        m.shares = [float(v) for _, v in ranked]
+        m.position.x, m.position.y, m.position.z = (float(v) for v in obj.position)
+        m.position_covariance = [float(v) for v in np.asarray(obj.covariance).ravel()]
+        m.size.x, m.size.y, m.size.z = (float(v) for v in obj.size)
+        m.first_seen, m.last_seen = stamp_msg(obj.first_seen), stamp_msg(obj.last_seen)
+        out.objects.append(m)
+    return out
+
+
+def marker_array(object_map: ObjectMap, frame_id: str, stamp: Any) -> Any:
+    """A box and a label per established object (module docstring)."""
+    clear = Marker(action=Marker.DELETEALL)
+    clear.header.frame_id, clear.header.stamp = frame_id, stamp
+    markers = [clear]
+    reject = object_map.config.reject_label
+    for obj in object_map.objects():
+        if not object_map.is_established(obj):
+            continue
+        confirmed = object_map.is_confirmed(obj)
+        box = Marker(ns='objects', id=obj.id, type=Marker.CUBE, action=Marker.ADD)
+        box.header.frame_id, box.header.stamp = frame_id, stamp
+        box.pose.position.x, box.pose.position.y, box.pose.position.z = (
+            float(v) for v in obj.position)
+        box.pose.orientation.w = 1.0
+        box.scale.x, box.scale.y, box.scale.z = (max(float(v), 0.005) for v in obj.size)
+        box.color.r, box.color.g, box.color.b = (0.1, 0.8, 0.2) if confirmed else (0.6, 0.6, 0.6)
+        box.color.a = 0.6
+        markers.append(box)
+        label, share = obj.label(reject)
+        text = Marker(ns='labels', id=obj.id, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD)
+        text.header.frame_id, text.header.stamp = frame_id, stamp
+        text.pose.position.x, text.pose.position.y = float(obj.position[0]), float(obj.position[1])
+        text.pose.position.z = float(obj.position[2] + 0.5 * obj.size[2] + 0.03)
+        text.pose.orientation.w = 1.0
+        text.scale.z = 0.03
+        text.color.r = text.color.g = text.color.b = text.color.a = 1.0
+        text.text = (f'{label} {share:.2f} ({obj.recognitions}/{obj.observations})' if label
+                     else f'? ({obj.observations})')
+        markers.append(text)
+    return MarkerArray(markers=markers)
+
+
+class ObjectMapNode(Node):
+    """Fuses recognitions, segmented objects and cylinders into labelled 3D objects."""
+
+    def __init__(self, **node_kwargs: Any) -> None:
+        super().__init__('object_map', **node_kwargs)
+        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+                                     on_change=self._on_parameters_changed)
+        self.map = ObjectMap(map_config(self._p))
+        self.input_health = InputHealth(self)
+        self._k: np.ndarray | None = None
+        self._camera_size: tuple[int, int] | None = None
+        self._stereo: tuple[float, np.ndarray] | None = None    # (stamp, (N, 3) map frame)
+        self.recognitions_received = 0
+        self.recognitions_placed = 0
+        self.publications = 0
+
+        self._tf = TransformBuffer()
+        self.poses = FramePoses(self._tf, self._p['map_frame'], max_age_s=self._p['tf_history_s'])
+        self._tf_listener = TransformListener(self._tf, self, on_update=self.poses.on_tf)
+        self._objects_pub = self.create_publisher(Detection3DArray, OBJECTS_TOPIC, MAP_QOS)
+        self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MAP_QOS)
+        self._map_pub = self.create_publisher(MapObjectArray, MAP_TOPIC, MAP_QOS)
+
+        self._topics = {name: self.resolve_topic_name(name) for name in (
+            DETECTIONS_TOPIC, CAMERA_INFO_TOPIC, CLUSTERS_TOPIC, CYLINDERS_TOPIC, STEREO_TOPIC)}
+        subs = ((FoveatedDetectionArray, DETECTIONS_TOPIC, 'a detection array',
+                 self._on_detections, 10),
+                (CameraInfo, CAMERA_INFO_TOPIC, 'a camera_info', self._on_camera_info, 10),
+                (Detection3DArray, CLUSTERS_TOPIC, 'a cluster array', self._on_clusters, 10),
+                (CylinderArray, CYLINDERS_TOPIC, 'a cylinder array', self._on_cylinders, 10),
+                (PointCloud2, STEREO_TOPIC, 'a cloud', self._on_stereo, 2))
+        self._subs = [self.create_subscription(
+            msg_type, topic, guarded(self, f'failed on {what}', callback,
+                                     topic=self._topics[topic]), depth)
+            for msg_type, topic, what, callback, depth in subs]
+        self._tick = guarded(self, 'publishing the map failed', self.publish_map)
+        self._timer = self.create_timer(self._p['publish_period_s'], self._tick)
+        self.get_logger().info(
+            f'object map in {self._p["map_frame"]!r}: recognitions from '
+            f'{self._topics[DETECTIONS_TOPIC]} (camera {self._topics[CAMERA_INFO_TOPIC]}), '
+            f'objects from {self._topics[CLUSTERS_TOPIC]} and {self._topics[CYLINDERS_TOPIC]}, '
+            f'depth from {self._topics[STEREO_TOPIC]}; map on {self._objects_pub.topic_name}, '
+            f'{self._markers_pub.topic_name}, {self._map_pub.topic_name} every '
+            f'{self._p["publish_period_s"]:g} s')
+
+    # --- parameters -----------------------------------------------------------------------------
+
+    def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if any(name in changed for name in MAP_PARAMETERS):
+            self.map.reconfigure(**{n: changed[n] for n in MAP_PARAMETERS if n in changed})
+        if 'map_frame' in changed:
+            self.poses.set_fixed_frame(changed['map_frame'])
+            self.map.clear()
+            self._stereo = None
+            self.get_logger().info(f'map_frame is now {changed["map_frame"]!r}: map cleared')
+        if 'tf_history_s' in changed:
+            self.poses.max_age_s = float(changed['tf_history_s'])
+        if 'publish_period_s' in changed:
+            self._timer = replace_timer(self, self._timer, changed['publish_period_s'],
+                                        self._tick)
+
+    # --- inputs ---------------------------------------------------------------------------------
+
+    def _pose(self, topic: str, header: Any) -> np.ndarray | None:
+        """The pose (4x4) of header's frame in the map frame at its stamp, or None (refused)."""
+        frame = header.frame_id.strip('/')
+        if not frame:
+            self.input_health.refuse(self._topics[topic], NO_FRAME_ID)
+            return None
+        pose = self.poses.pose_at(frame, stamp_seconds(header.stamp))
+        if pose is None:
+            self.input_health.refuse(self._topics[topic], NO_POSE,
+                                     f'no transform {self._p["map_frame"]} <- {frame}')
+        return pose
+
+    def _on_camera_info(self, msg: Any) -> None:
+        k = camera_k(msg)
+        if k is None:
+            self.input_health.refuse(self._topics[CAMERA_INFO_TOPIC], UNUSABLE_K,
+                                     f'K {[float(v) for v in msg.k]}')
+            return
+        self._k, self._camera_size = k, (int(msg.width), int(msg.height))
+        self.input_health.accept(self._topics[CAMERA_INFO_TOPIC])
+
+    def _on_detections(self, msg: Any) -> None:
+        topic = self._topics[DETECTIONS_TOPIC]
+        chosen = [d for d in msg.detections if d.pass_index >= self._p['min_pass']]
+        if not chosen:
+            self.input_health.accept(topic)
+            return
+        if self._k is None or self._camera_size is None:
+            self.input_health.refuse(topic, NO_CAMERA_INFO,
+                                     f'no usable {self._topics[CAMERA_INFO_TOPIC]} yet')
+            return
+        pose = self._pose(DETECTIONS_TOPIC, msg.header)
+        if pose is None:
+            return
+        view = CameraView(self._k, pose, *self._camera_size)
+        stamp = stamp_seconds(msg.header.stamp)
+        depth = self._depth_points(stamp)
+        recognitions = []
+        for d in chosen:
+            u, v = float(d.fixation_u), float(d.fixation_v)
+            if not (math.isfinite(u) and math.isfinite(v) and math.isfinite(d.score)):
+                self.input_health.refuse(topic, NON_FINITE, f'detection {d.label!r}')
+                continue
+            surface = (surface_point_at(view, u, v, depth, self._p['depth_radius_px'])
+                       if depth is not None and self.map.objects_at_pixel(view, u, v) == []
+                       else None)
+            point, cov = surface if surface is not None else (None, None)
+            recognitions.append(Recognition(u, v, d.label, float(d.score), stamp, point, cov))
+        placed = self.map.add_recognitions(recognitions, view)
+        self.recognitions_received += len(recognitions)
+        self.recognitions_placed += sum(p is not None for p in placed)
+        self.input_health.accept(topic)
+
+    def _depth_points(self, stamp: float) -> np.ndarray | None:
+        if not self._p['use_stereo_depth'] or self._stereo is None:
+            return None
+        t, points = self._stereo
+        return points if abs(stamp - t) <= self._p['stereo_max_age_s'] else None
+
+    def _on_clusters(self, msg: Any) -> None:
+        topic = self._topics[CLUSTERS_TOPIC]
+        pose = self._pose(CLUSTERS_TOPIC, msg.header)
+        if pose is None:
+            return
+        stamp = stamp_seconds(msg.header.stamp)
+        observations: list[GeometryObservation] = []
+        for det in msg.detections:
+            c, s = det.bbox.center, det.bbox.size
+            centre = np.array([c.position.x, c.position.y, c.position.z], np.float64)
+            quat = (c.orientation.x, c.orientation.y, c.orientation.z, c.orientation.w)
+            size = np.array([s.x, s.y, s.z], np.float64)
+            if not (np.isfinite(centre).all() and np.isfinite(size).all()
+                    and np.isfinite(quat).all() and np.linalg.norm(quat) > 1e-9):
+                self.input_health.refuse(topic, NON_FINITE, f'cluster {det.id!r}')
+                continue
+            observations.append(cluster_observation(pose, centre, rotation_matrix(quat),
+                                                    np.abs(size), stamp))
+        self.map.add_geometry(observations)
+        self.input_health.accept(topic)
+
+    def _on_cylinders(self, msg: Any) -> None:
+        topic = self._topics[CYLINDERS_TOPIC]
+        if not msg.cylinders:
+            self.input_health.accept(topic)      # also the detector's heartbeat
+            return
+        pose = self._pose(CYLINDERS_TOPIC, msg.header)
+        if pose is None:
+            return
+        stamp = stamp_seconds(msg.header.stamp)
+        observations = []
+        for cyl in msg.cylinders:
+            centre = np.array([cyl.center.x, cyl.center.y, cyl.center.z], np.float64)
+            axis = np.array([cyl.axis.x, cyl.axis.y, cyl.axis.z], np.float64)
+            values = np.concatenate([centre, axis, [cyl.radius, cyl.height]])
+            if not np.isfinite(values).all() or np.linalg.norm(axis) < 1e-9:
+                self.input_health.refuse(topic, NON_FINITE, f'cylinder {cyl.id}')
+                continue
+            observations.append(cylinder_observation(pose, centre, axis, float(cyl.radius),
+                                                     float(cyl.height), stamp))
+        self.map.add_geometry(observations)
+        self.input_health.accept(topic)
+
+    def _on_stereo(self, msg: Any) -> None:
+        topic = self._topics[STEREO_TOPIC]
+        if not self._p['use_stereo_depth']:
+            return
+        names = {f.name for f in msg.fields}
+        if not {'x', 'y', 'z'} <= names:
+            self.input_health.refuse(topic, NO_XYZ, f'fields {sorted(names)}')
+            return
+        try:
+            cloud = pointcloud2_to_array(msg).reshape(-1)
+        except ConversionError as exc:
+            self.input_health.refuse(topic, NO_XYZ, str(exc))
+            return
+        pose = self._pose(STEREO_TOPIC, msg.header)
+        if pose is None:
+            return
+        xyz = np.stack([cloud['x'], cloud['y'], cloud['z']], axis=1).astype(np.float64)
+        xyz = xyz[np.isfinite(xyz).all(axis=1)]
+        if len(xyz) > STEREO_MAX_POINTS:     # an even thinning keeps the surfaces
+            xyz = xyz[:: int(math.ceil(len(xyz) / STEREO_MAX_POINTS))]
+        self._stereo = (stamp_seconds(msg.header.stamp), xyz @ pose[:3, :3].T + pose[:3, 3])
+        self.input_health.accept(topic)
+
+    # --- output ---------------------------------------------------------------------------------
+
+    def publish_map(self) -> None:
+        """Forget what faded, then publish the three outputs (on the timer)."""
+        now_time = self.get_clock().now()
+        now = now_time.nanoseconds * 1e-9
+        if now > 0:                       # sim time before the first /clock reads 0
+            self.map.expire(now)
+        stamp = now_time.to_msg()
+        frame = self._p['map_frame'].strip('/')
+        reject = self.map.config.reject_label
+        self._objects_pub.publish(detection3d_array(self.map.objects(confirmed_only=True),
+                                                    reject, frame, stamp))
+        self._markers_pub.publish(marker_array(self.map, frame, stamp))
+        self._map_pub.publish(map_object_array(self.map, frame, stamp))
+        self.publications += 1
+
+
+main = main_for(ObjectMapNode)
+
+
+if __name__ == '__main__':
+    main()
