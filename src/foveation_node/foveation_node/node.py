@@ -40,6 +40,15 @@ fixation and at each pass-1 box centre, and publishes
 
   /foveation/detections        active_vision_msgs/FoveatedDetectionArray, one per pass
                                (pass_index 0, then 1), the frame's header
+  /foveation/detections_2d     vision_msgs/Detection2DArray (reliable, depth 10), the frame's
+                               header (on the array and on each detection): one Detection2D per
+                               pass-2 detection, bbox in full-resolution pixels of the frame
+                               (center = box centre ((x0+x1)/2, (y0+y1)/2), theta 0, size_x/y =
+                               x1-x0+1, y1-y0+1 for inclusive pixel bounds x0..x1, y0..y1; see
+                               core.detections_2d), results = at most top_k
+                               ObjectHypothesisWithPose: its own label (class_id = the label
+                               string) and score first, then the other classes of the pass-2 image
+                               it was found in by decreasing probability (pose unset); id empty
   /foveation/overlay           sensor_msgs/Image rgb8 (if publish_overlay), the frame foveated at
                                its fixation with both passes' boxes, labels and scores (one colour
                                per pass), the fixation and the fovea (radius f0), a legend
@@ -72,6 +81,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from foveation_node.core.detections_2d import box_centre_size, ranked_hypotheses
 from foveation_node.core.foveation import DEFAULT_F0, DEFAULT_LEVELS, PYRAMID_SIGMA_1, Foveator
 from foveation_node.core.overlay import Box, draw_overlay
 from foveation_node.core.recognition import (
@@ -118,6 +128,9 @@ GazeState = message('active_vision_msgs/msg/GazeState')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 FoveatedDetection = message('active_vision_msgs/msg/FoveatedDetection')
 FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
+Detection2D = message('vision_msgs/msg/Detection2D')
+Detection2DArray = message('vision_msgs/msg/Detection2DArray')
+ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
 
 # Relative names: the graph remaps the generic inputs (image_raw:=vizzy/left/image_raw, ...) and
 # the node's namespace places everything; logs print the resolved names.
@@ -127,6 +140,7 @@ GAZE_STATE_TOPIC = 'gaze/state'
 OUTPUT_TOPIC = '~/image'
 COMPRESSED_TOPIC = '~/image/compressed'
 DETECTIONS_TOPIC = '~/detections'
+DETECTIONS_2D_TOPIC = '~/detections_2d'
 OVERLAY_TOPIC = '~/overlay'
 GAZE_COMMAND_TOPIC = 'gaze/command'
 GAZE_SOURCE = 'foveation'
@@ -271,6 +285,29 @@ def encode_jpeg(image: np.ndarray, encoding: str, quality: int) -> bytes:
     return buf.tobytes()
 
 
+def detection_2d_array(header: Any, detections: list[Detection], probs_second: np.ndarray,
+                       labels: list[str], top_k: int) -> Any:
+    """The vision_msgs/Detection2DArray of pass-2 detections (TwoPassResult.second, with their
+    probs_second): one Detection2D each, header on the array and on each detection, the box as
+    centre and size (core.detections_2d.box_centre_size), results the ranked hypotheses
+    (core.detections_2d.ranked_hypotheses, at most top_k), id empty."""
+    out = Detection2DArray()
+    out.header = header
+    for d in detections:
+        det = Detection2D()
+        det.header = header
+        u, v, width, height = box_centre_size(d.box)
+        det.bbox.center.position.x, det.bbox.center.position.y = u, v
+        det.bbox.center.theta = 0.0
+        det.bbox.size_x, det.bbox.size_y = width, height
+        for label, score in ranked_hypotheses(d, probs_second, labels, top_k):
+            hyp = ObjectHypothesisWithPose()
+            hyp.hypothesis.class_id, hyp.hypothesis.score = label, score
+            det.results.append(hyp)
+        out.detections.append(det)
+    return out
+
+
 class FoveationNode(Node):
     """Foveates left images at the fixation; publishes them raw and as JPEG."""
 
@@ -331,6 +368,7 @@ class FoveationNode(Node):
         self.last_recognition_ms: float | None = None
         self.saccades_sent = 0
         self._det_pub = self.create_publisher(FoveatedDetectionArray, DETECTIONS_TOPIC, 10)
+        self._det2d_pub = self.create_publisher(Detection2DArray, DETECTIONS_2D_TOPIC, 10)
         self._overlay_pub = self.create_publisher(Image, OVERLAY_TOPIC, qos_profile_sensor_data)
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         self._load_classifier()
@@ -373,8 +411,8 @@ class FoveationNode(Node):
             f'recognising {classifier.num_classes} classes ({", ".join(classifier.labels[:8])}'
             f'{", ..." if classifier.num_classes > 8 else ""}) with {model} at {w}x{h}, top-'
             f'{self._p["top_k"]}, th {self._p["saliency_threshold"]:g}, at most '
-            f'{self._p["recognition_rate_hz"]:g} Hz; detections on {self._det_pub.topic_name}'
-            f'{saccades}')
+            f'{self._p["recognition_rate_hz"]:g} Hz; detections on {self._det_pub.topic_name} '
+            f'and {self._det2d_pub.topic_name}{saccades}')
 
     def _on_gaze_state(self, msg: Any) -> None:
         in_saccade = bool(msg.in_saccade)
@@ -484,6 +522,8 @@ class FoveationNode(Node):
         for detections in (result.first, result.second):
             publish_from_thread(self, self._det_pub,
                                 self._detection_array(msg.header, fixation, detections))
+        publish_from_thread(self, self._det2d_pub, detection_2d_array(
+            msg.header, result.second, result.probs_second, classifier.labels, self._p['top_k']))
         if self._p['publish_overlay']:
             boxes = [Box(d.box[0], d.box[1], d.box[2] - d.box[0] + 1, d.box[3] - d.box[1] + 1,
                          d.label, d.score, d.pass_index) for d in (*result.first, *result.second)]

@@ -1,7 +1,8 @@
 """The foveation node's recognition live on the bundled runtime: detections per pass and saccades.
 
 The classifier is conftest's stub colour detector (no training); a test node publishes
-images, camera_info and gaze states and listens to /foveation/detections and /gaze/command.
+images, camera_info and gaze states and listens to /foveation/detections,
+/foveation/detections_2d and /gaze/command.
 Nothing asserts on wall-clock time: the tests wait for conditions.
 """
 
@@ -31,6 +32,7 @@ pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh
 GazeState = message('active_vision_msgs/msg/GazeState')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
+Detection2DArray = message('vision_msgs/msg/Detection2DArray')
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 
@@ -56,6 +58,9 @@ class Camera(Node):
         self.gaze_pub = self.create_publisher(GazeState, foveation._gaze_state_sub.topic_name, 10)
         self.create_subscription(FoveatedDetectionArray, foveation._det_pub.topic_name,
                                  self.detections.append, 10)
+        self.detections_2d: list[Any] = []
+        self.create_subscription(Detection2DArray, foveation._det2d_pub.topic_name,
+                                 self.detections_2d.append, 10)
         self.create_subscription(GazeCommand, foveation._gaze_pub.topic_name,
                                  self.commands.append, 10)
         self.overlays: list[Any] = []
@@ -92,6 +97,7 @@ def graph(context, stub_model):
                   lambda: camera.image_pub.get_subscription_count() > 0
                   and camera.info_pub.get_subscription_count() > 0
                   and foveation._det_pub.get_subscription_count() > 0
+                  and foveation._det2d_pub.get_subscription_count() > 0
                   and foveation._gaze_pub.get_subscription_count() > 0, TIMEOUT) as executor:
         yield camera, foveation, executor
 
@@ -135,6 +141,34 @@ def test_detections_per_pass_and_a_saccade_to_the_object(graph) -> None:
     u = FX * p[0] / p[2] + (WIDTH - 1) / 2
     v = FX * p[1] / p[2] + (HEIGHT - 1) / 2
     assert math.hypot(u - PATCH[0], v - PATCH[1]) < 20
+
+
+def test_pass_two_detections_as_vision_msgs(graph) -> None:
+    camera, foveation, executor = graph
+    assert foveation._det2d_pub.topic_name == '/foveation/detections_2d'
+    assert _send_until(camera, executor, _image_msg(),
+                       lambda: len(camera.detections) >= 2 and camera.detections_2d)
+    # the same frame's pass 2 (the image never changes, so every recognition gives the same)
+    second, out = camera.detections[1], camera.detections_2d[0]
+    assert {d.pass_index for d in second.detections} == {1}
+    assert out.header.frame_id == FRAME and out.header.stamp.sec == 7
+    assert len(out.detections) == len(second.detections) == 3
+    for det, ours in zip(out.detections, second.detections, strict=True):
+        assert det.header.frame_id == FRAME and det.header.stamp.sec == 7 and det.id == ''
+        # the same box: inclusive pixel bounds x_offset .. x_offset + width - 1
+        assert det.bbox.size_x == ours.box.width and det.bbox.size_y == ours.box.height
+        assert det.bbox.center.position.x == ours.box.x_offset + (ours.box.width - 1) / 2
+        assert det.bbox.center.position.y == ours.box.y_offset + (ours.box.height - 1) / 2
+        assert det.bbox.center.theta == 0.0
+        # its own label and score first, then the 2 other stub classes (top_k 3), likeliest first
+        hyps = [(r.hypothesis.class_id, r.hypothesis.score) for r in det.results]
+        assert hyps[0] == (ours.label, ours.score)
+        assert sorted(label for label, _ in hyps) == ['blue', 'green', 'red']
+        assert hyps[2][1] <= hyps[1][1]
+    best = out.detections[0]
+    assert best.results[0].hypothesis.class_id == 'red' and best.results[0].hypothesis.score > 0.9
+    c = best.bbox.center.position
+    assert abs(c.x - PATCH[0]) < 20 and abs(c.y - PATCH[1]) < 20
 
 
 def test_the_overlay_shows_both_passes_fixation_and_fovea(graph) -> None:

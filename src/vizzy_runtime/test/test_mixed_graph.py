@@ -35,7 +35,7 @@ OUTPUTS = {
     '/clock', '/joint_states', '/tf', '/vizzy/left/image_raw', '/vizzy/right/image_raw',
     '/vizzy/left/camera_info', '/vizzy/rgbd/points',                 # sim
     '/gaze/state', '/vizzy/joint_commands',                          # gaze_controller
-    '/foveation/image', '/foveation/detections',                     # foveation
+    '/foveation/image', '/foveation/detections', '/foveation/detections_2d',  # foveation
     '/stereo/points', '/ses/cells',                                  # stereo_ses
     '/cylinders',                                                    # cylinder_detector
     '/mot/tracks',                                                   # mot_planner
@@ -53,7 +53,8 @@ def test_whole_graph_across_vendors(tmp_path, real_side):
     bundled_log = open(tmp_path / 'bundled.log', 'w+')  # noqa: SIM115 - the launcher's log
     bundled = Launcher(load_graph(graph_subset(tmp_path / 'bundled.yaml', bundled_nodes)),
                        output=bundled_log, grace_s=GRACE_S)
-    flow = Flow(OUTPUTS, decode={'/gaze/state'})
+    # vision_msgs/Detection2DArray decoded too: the bundled definitions read what either side sent
+    flow = Flow(OUTPUTS, decode={'/gaze/state', '/foveation/detections_2d'})
 
     def sources() -> set[str]:  # who the gaze controller serves: commands crossed the boundary
         return {m.active_source for m in flow.messages['/gaze/state']} - {''}
@@ -84,6 +85,8 @@ def test_whole_graph_across_vendors(tmp_path, real_side):
     assert up and not flow.missing(), (
         f'no messages on {sorted(flow.missing())} (heard {flow.counts})\n{logs}')
     assert found == expected, f'nodes on the wrong runtime (or not seen): {found}\n{logs}'
+    frames = {m.header.frame_id for m in flow.messages['/foveation/detections_2d']}
+    assert frames == {'left_camera_optical_frame'}, f'detections_2d frames {frames}\n{logs}'
     assert sources() <= {'foveation', 'stereo_ses', 'mot_planner'} and sources(), (
         f'no gaze command from the perception nodes was served: {sources()}\n{logs}')
     # both launchers stop their nodes cleanly (SIGINT; the real launcher exits 0 once they have)

@@ -96,7 +96,8 @@ def load_preprocessing(path: str | Path | None) -> Preprocessing:
 @dataclass(frozen=True)
 class Detection:
     """One class found in one pass: its label, probability, saliency box (image px) and the
-    fixation of the pass that found it."""
+    fixation of the pass that found it; for pass 2, row: its row of TwoPassResult.probs_second
+    (the image foveated at the pass-1 box centre it was found in; None in pass 1)."""
 
     class_id: int
     label: str
@@ -104,6 +105,7 @@ class Detection:
     box: Box
     fixation: tuple[float, float]
     pass_index: int
+    row: int | None = None
 
     @property
     def centre(self) -> tuple[float, float]:
@@ -300,7 +302,7 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
                           net_input=[second_images[r] for _, r, _ in chosen])
     else:
         boxes2 = [first[r].box for _, r, _ in chosen]
-    second = [Detection(c, classifier.labels[c], s, b, centres[r], 1)
+    second = [Detection(c, classifier.labels[c], s, b, centres[r], 1, row=r)
               for (c, r, s), b in zip(chosen, boxes2, strict=True)]
     return TwoPassResult(first, second, probs1, probs2)
 
