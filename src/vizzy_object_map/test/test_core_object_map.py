@@ -202,3 +202,30 @@ def test_bad_rules_are_refused_with_their_name() -> None:
     m = ObjectMap()
     m.reconfigure(min_recognitions=5)
     assert m.config.min_recognitions == 5
+
+
+def test_looks_go_to_unnamed_objects_settle_dwell_and_give_up() -> None:
+    from vizzy_object_map.core.attention import DWELL, IDLE, SACCADE, LookConfig, LookScheduler
+    view = camera_looking_along_x()
+    m = ObjectMap(MapConfig(established_geometry=1, min_recognitions=1))
+    a, b = (0.8, 0.3, 0.5), (0.8, -0.1, 0.5)
+    m.add_geometry([geometry(*a), geometry(*b)])
+    looks = LookScheduler(LookConfig(dwell_s=1.0, max_looks=2, settle_timeout_s=3.0))
+    origin = np.array([0.0, 0.0, 0.5])
+    # the nearest in angle to where the eyes are (straight ahead): b
+    first = looks.update(10.0, False, False, m, origin, np.array([1.0, 0.0, 0.5]))
+    assert first is not None and np.allclose(first.position, b) and looks.state == SACCADE
+    assert looks.update(10.1, True, True, m, origin, None) is None          # eyes moving
+    assert looks.update(10.3, False, True, m, origin, None) is None         # settled
+    assert looks.state == DWELL
+    assert looks.update(11.0, False, True, m, origin, None) is None         # dwelling
+    # named while dwelling: the next look at once (inhibition of return)
+    m.add_recognitions([Recognition(*pixel_of(view, b), 'can', 0.9, 11.1)], view)
+    second = looks.update(11.2, False, True, m, origin, None)
+    assert second is not None and np.allclose(second.position, a)
+    # never settles (preempted): abandoned after the timeout, a retries until max_looks
+    assert looks.update(13.0, False, False, m, origin, None) is None
+    third = looks.update(14.5, False, False, m, origin, None)
+    assert third is not None and third.id == second.id and looks.abandoned == 1
+    assert looks.update(18.0, False, False, m, origin, None) is None        # given up on a
+    assert looks.state == IDLE and looks.looks[second.id] == 2 and looks.sent == 3

@@ -49,6 +49,7 @@ Detection3D = message('vision_msgs/msg/Detection3D')
 Detection3DArray = message('vision_msgs/msg/Detection3DArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 MapObjectArray = message('active_vision_msgs/msg/MapObjectArray')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 
 
 def to_sensor(p: np.ndarray) -> np.ndarray:
@@ -81,6 +82,8 @@ class Peers(Node):
         self.create_subscription(MarkerArray, mapper._markers_pub.topic_name,
                                  self.markers.append, 10)
         self.create_subscription(MapObjectArray, mapper._map_pub.topic_name, self.maps.append, 10)
+        self.gaze: list[Any] = []
+        self.create_subscription(GazeCommand, mapper._gaze_pub.topic_name, self.gaze.append, 10)
 
     def stamp(self) -> Any:
         return self.get_clock().now().to_msg()
@@ -141,7 +144,8 @@ class Peers(Node):
 @pytest.fixture
 def graph(context):
     mapper = map_node.ObjectMapNode(context=context, parameter_overrides=[
-        Parameter('publish_period_s', value=0.1), Parameter('use_stereo_depth', value=False)])
+        Parameter('publish_period_s', value=0.1), Parameter('use_stereo_depth', value=False),
+        Parameter('min_pass', value=1)])
     peers = Peers(context, mapper)
     with spinning(context, [peers, mapper],
                   lambda: peers.cluster_pub.get_subscription_count() > 0
@@ -171,6 +175,12 @@ def test_objects_are_placed_by_geometry_and_named_by_recognitions(graph) -> None
     peers.publish_cylinder()
     assert wait_until(lambda: any(o.cylinders for o in mapper.map.objects()), TIMEOUT,
                       spin=executor)
+    # both objects are established and unnamed: the map looks at one of them
+    assert wait_until(lambda: peers.gaze, TIMEOUT, spin=executor)
+    cmd = peers.gaze[0]
+    assert cmd.source == 'object_map' and cmd.priority == 35 and cmd.header.frame_id == 'base_link'
+    point = np.array([cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z])
+    assert min(np.linalg.norm(point - CAN), np.linalg.norm(point - BOX)) < 0.01
     # pass 0 is not used by default; pass 1 names the object under its fixation
     peers.publish_detection('bottle', 0.9, CAN, pass_index=0)
     for score in (0.8, 0.6):

@@ -15,6 +15,8 @@ Subscribes
   /stereo/points            sensor_msgs/PointCloud2 (x y z, left optical frame): depth for a
                             recognition that falls on no known object (use_stereo_depth)
   /tf, /tf_static           poses of the sensors at each input's stamp (tf.FramePoses)
+  /gaze/state               active_vision_msgs/GazeState: whether the eyes move, whose look
+                            is served, where they fixate
 
 core.object_map.ObjectMap fuses them (its docstring: association, fusion, naming, fading,
 merging) and, every publish_period_s of the node's clock (sim time in the graph), publishes
@@ -32,6 +34,11 @@ merging) and, every publish_period_s of the node's clock (sim time in the graph)
                     no field for (observation counts, first and last seen, established,
                     confirmed)
   /diagnostics      the node's input health
+  /gaze/command     active_vision_msgs/GazeCommand (looks_enabled): a saccade (MODE_FIXATION_
+                    POINT in map_frame, source 'object_map', priority gaze_priority, hold_time
+                    dwell_s) to the next established object without a name (core.attention:
+                    the task bias toward where objects are, inhibition of return on named ones,
+                    dwell_s on each settled fixation for the recogniser, max_looks per object)
 
 The three outputs are reliable and transient local (depth 1), like a map: a late subscriber gets
 the current map at once.
@@ -49,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from vizzy_object_map.core.attention import LookConfig, LookScheduler
 from vizzy_object_map.core.object_map import (
     CameraView,
     GeometryObservation,
@@ -79,6 +87,8 @@ from vizzy_vision.frames import rotation_matrix
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+GazeState = message('active_vision_msgs/msg/GazeState')
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 MapObjectMsg = message('active_vision_msgs/msg/MapObject')
 MapObjectArray = message('active_vision_msgs/msg/MapObjectArray')
@@ -94,6 +104,10 @@ CAMERA_INFO_TOPIC = 'camera_info'
 CLUSTERS_TOPIC = 'cylinders/clusters'
 CYLINDERS_TOPIC = 'cylinders'
 STEREO_TOPIC = 'stereo/points'
+GAZE_STATE_TOPIC = 'gaze/state'
+GAZE_COMMAND_TOPIC = 'gaze/command'
+GAZE_SOURCE = 'object_map'
+LOOK_PERIOD_S = 0.1                 # how often the look scheduler runs (node clock)
 OBJECTS_TOPIC = 'objects'
 MARKERS_TOPIC = 'objects/markers'
 MAP_TOPIC = 'objects/map'
@@ -124,7 +138,7 @@ PARAMETERS: tuple[Param, ...] = (
           'Objects whose centres come closer than this become one [m], in (0, 1].', '(0, 1]'),
     Param('min_recognition_score', _DEFAULTS.min_recognition_score,
           'Recognitions scoring less are ignored, in [0, 1].', '[0, 1]'),
-    Param('min_pass', 1, 'Use the detections of this foveation pass and later (0: the first, '
+    Param('min_pass', 0, 'Use the detections of this foveation pass and later (0: the first, '
           'at the gaze fixation; 1: the refined one at each box centre), in [0, 255].',
           '[0, 255]'),
     Param('min_recognitions', _DEFAULTS.min_recognitions,
@@ -153,6 +167,15 @@ PARAMETERS: tuple[Param, ...] = (
           '[px], in (0, 100].', '(0, 100]'),
     Param('tf_history_s', 5.0, 'How long the sensors\' poses are kept for inputs stamped in the '
           'past [s], in (0, 60].', '(0, 60]'),
+    Param('looks_enabled', True,
+          f'Send saccades on {GAZE_COMMAND_TOPIC} to the objects placed but not yet named '
+          '(core.attention: the task bias, with inhibition of return).'),
+    Param('gaze_priority', 35, 'Priority of those saccades, in [0, 1000] (foveation 30, '
+          'stereo_ses 20, mot_planner 10).', '[0, 1000]'),
+    Param('dwell_s', 1.0, 'Time on a settled fixation before the next look [s] (the '
+          'recogniser needs about two results), in [0, 60].', '[0, 60]'),
+    Param('max_looks', 3, 'Looks at an object that stays unnamed before it is given up, in '
+          '[1, 100].', '[1, 100]'),
 )
 MAP_PARAMETERS = ('association_radius_m', 'merge_radius_m', 'min_recognition_score',
                   'min_recognitions', 'min_recognitions_without_geometry', 'min_label_share',
@@ -306,6 +329,18 @@ class ObjectMapNode(Node):
             for msg_type, topic, what, callback, depth in subs]
         self._tick = guarded(self, 'publishing the map failed', self.publish_map)
         self._timer = self.create_timer(self._p['publish_period_s'], self._tick)
+        # task-driven looks (core.attention)
+        self.looks = LookScheduler(self._look_config())
+        self._in_saccade = False
+        self._gaze_ours = False
+        self._fixation: np.ndarray | None = None     # the gaze fixation, map frame
+        self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
+        self._topics[GAZE_STATE_TOPIC] = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        self._subs.append(self.create_subscription(
+            GazeState, GAZE_STATE_TOPIC, guarded(self, 'failed on a state', self._on_gaze_state,
+                                                 topic=self._topics[GAZE_STATE_TOPIC]), 10))
+        self._look_timer = self.create_timer(LOOK_PERIOD_S, guarded(self, 'looking failed',
+                                                                    self.look))
         self.get_logger().info(
             f'object map in {self._p["map_frame"]!r}: recognitions from '
             f'{self._topics[DETECTIONS_TOPIC]} (camera {self._topics[CAMERA_INFO_TOPIC]}), '
@@ -316,7 +351,12 @@ class ObjectMapNode(Node):
 
     # --- parameters -----------------------------------------------------------------------------
 
+    def _look_config(self) -> LookConfig:
+        return LookConfig(dwell_s=self._p['dwell_s'], max_looks=self._p['max_looks'])
+
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'dwell_s' in changed or 'max_looks' in changed:
+            self.looks.config = self._look_config()
         if any(name in changed for name in MAP_PARAMETERS):
             self.map.reconfigure(**{n: changed[n] for n in MAP_PARAMETERS if n in changed})
         if 'map_frame' in changed:
@@ -457,6 +497,51 @@ class ObjectMapNode(Node):
         self._stereo = (stamp_seconds(msg.header.stamp), xyz @ pose[:3, :3].T + pose[:3, 3])
         self.input_health.accept(topic)
 
+    def _on_gaze_state(self, msg: Any) -> None:
+        self._in_saccade = bool(msg.in_saccade)
+        self._gaze_ours = msg.active_source == GAZE_SOURCE
+        p = msg.fixation_point
+        frame = msg.header.frame_id.strip('/') or self._p['map_frame']
+        try:
+            m = self._tf.lookup_transform(self._p['map_frame'], frame)
+        except LookupError:
+            self._fixation = None
+        else:
+            self._fixation = m[:3, :3] @ np.array([p.x, p.y, p.z]) + m[:3, 3]
+        self.input_health.accept(self._topics[GAZE_STATE_TOPIC])
+
+    def look(self) -> None:
+        """The look scheduler's turn (timer): maybe a saccade to an unnamed object."""
+        if not self._p['looks_enabled']:
+            return
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if now <= 0:
+            return
+        origin = self._head_origin()
+        target = self.looks.update(now, self._in_saccade, self._gaze_ours, self.map, origin,
+                                   self._fixation)
+        if target is None:
+            return
+        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
+                          motion=GazeCommand.MOTION_SACCADE, source=GAZE_SOURCE,
+                          priority=int(self._p['gaze_priority']),
+                          hold_time=float(self._p['dwell_s']))
+        cmd.header.stamp = self.get_clock().now().to_msg()
+        cmd.header.frame_id = self._p['map_frame'].strip('/')
+        (cmd.fixation_point.x, cmd.fixation_point.y,
+         cmd.fixation_point.z) = (float(v) for v in target.position)
+        self._gaze_pub.publish(cmd)
+        self._gaze_ours = False            # until /gaze/state says the look is served
+
+    def _head_origin(self) -> np.ndarray:
+        """Where the eyes are (the left camera's position) in the map frame, else the origin."""
+        for frame in ('ego', 'left_camera_optical_frame'):
+            try:
+                return self._tf.lookup_transform(self._p['map_frame'], frame)[:3, 3]
+            except LookupError:
+                continue
+        return np.zeros(3)
+
     # --- output ---------------------------------------------------------------------------------
 
     def publish_map(self) -> None:
@@ -464,7 +549,7 @@ class ObjectMapNode(Node):
         now_time = self.get_clock().now()
         now = now_time.nanoseconds * 1e-9
         if now > 0:                       # sim time before the first /clock reads 0
-            self.map.expire(now)
+            self.looks.forget(self.map.expire(now))
         stamp = now_time.to_msg()
         frame = self._p['map_frame'].strip('/')
         reject = self.map.config.reject_label
