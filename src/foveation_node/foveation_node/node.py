@@ -33,10 +33,12 @@ stays in use); and, for an exception escaping a callback (node_tools.guarded), '
 image: <ExcType>' (or a camera_info, a state). The refused frame is skipped and the node keeps
 running.
 
-Recognition (section 2.3.2, Fig. 2.5; core.recognition): at most recognition_rate_hz, the
-newest frame goes to a worker thread (at most one recognition in flight; a frame arriving while
-it is busy replaces the waiting one), which runs the two passes on the raw frame foveated at the
-fixation and at each pass-1 box centre, and publishes
+Recognition (section 2.3.2, Fig. 2.5; core.recognition): at most recognition_rate_hz in the
+images' own time (their stamps: sim time in the graph, so a loaded machine recognises the same
+frames, later, instead of fewer), the newest frame goes to a worker thread (at most one
+recognition in flight; a frame arriving while it is busy replaces the waiting one), which runs
+the two passes on the raw frame foveated at the fixation and at each pass-1 box centre, and
+publishes
 
   /foveation/detections        active_vision_msgs/FoveatedDetectionArray, one per pass
                                (pass_index 0, then 1), the frame's header
@@ -107,6 +109,7 @@ from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reason
     image_refusal,
     image_to_numpy,
     numpy_to_image,
+    stamp_seconds,
 )
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
@@ -359,8 +362,8 @@ class FoveationNode(Node):
         self._camera_k: tuple[float, ...] | None = None
         self._camera_size: tuple[int, int] | None = None
         self._saccade_epoch = 0                 # +1 whenever a saccade starts
-        self._last_saccade = -math.inf          # time.monotonic() of our last command
-        self._last_handoff = -math.inf
+        self._last_saccade = -math.inf          # node clock [s] of our last command
+        self._last_handoff = -math.inf          # stamp [s] of the last frame recognised
         self._classifier: Classifier | None = None
         self._rec_foveator: Foveator | None = None
         self.recognitions = 0
@@ -486,9 +489,12 @@ class FoveationNode(Node):
         """Hand the frame to the worker (replacing one still waiting), at most at the rate."""
         if self._classifier is None:
             return
-        now = time.monotonic()
-        if now - self._last_handoff < 1.0 / self._p['recognition_rate_hz']:
-            return
+        # the rate is in the images' own time (sim time in the graph, a bag's when replayed), so
+        # a slower machine recognises the same frames instead of fewer per second of video
+        now = stamp_seconds(msg.header.stamp)
+        period = 1.0 / self._p['recognition_rate_hz']
+        if self._last_handoff - 1.0 < now < self._last_handoff + period:
+            return                          # (a stamp far before the last: time was reset)
         self._last_handoff = now
         # image may view msg's buffer: keep msg alive with it
         self._worker.put((image, msg, fixation, self._saccade_epoch))
@@ -558,8 +564,8 @@ class FoveationNode(Node):
         p = self._p
         if not p['saccades_enabled'] or self._in_saccade or epoch != self._saccade_epoch:
             return                                   # eyes moving, or moved since the frame
-        now = time.monotonic()
-        if now - self._last_saccade < p['saccade_min_interval_s']:
+        now = self.get_clock().now().nanoseconds * 1e-9      # sim time in the graph
+        if 0.0 <= now - self._last_saccade < p['saccade_min_interval_s']:
             return
         k = self._camera_k
         if k is None or self._camera_size != (width, height):

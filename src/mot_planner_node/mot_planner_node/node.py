@@ -71,7 +71,6 @@ parameters); tests replace it with a stub that needs no real people.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, cast
@@ -610,8 +609,8 @@ class MotPlannerNode(Node):
         steer = self._gaze_tracks(result) & persons
         if not steer.any():
             return
-        now = time.monotonic()
-        if now - self._last_gaze < 1.0 / self._p['gaze_rate_hz']:
+        now = self.get_clock().now().nanoseconds * 1e-9      # sim time in the graph
+        if 0.0 <= now - self._last_gaze < 1.0 / self._p['gaze_rate_hz']:
             return
         if self._k is None:
             self._warn_throttled('gaze', f'no {self._info_topic} yet: no gaze commands')

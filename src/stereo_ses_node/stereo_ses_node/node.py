@@ -37,8 +37,9 @@ SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
 
 Processing never blocks the executor: callbacks only store messages; a worker thread takes the
 newest complete pair (older pairs are dropped: newest wins, one in flight) at most max_rate_hz
-times a second, so the node leaves CPU to the rest of the graph (a 640x480 log-polar pair costs
-about 85 ms of one core, mostly the UT of ~34,000 points; the matching about 13 ms). Bad input
+times a second of the images' own time (their stamps; sim time in the graph), so the node
+leaves CPU to the rest of the graph (a 640x480 log-polar pair costs about 85 ms of one core,
+mostly the UT of ~34,000 points; the matching about 13 ms). Bad input
 is refused and the ego-sphere stays consistent (SensoryEgoSphere.fuse validates everything
 before it changes state; degenerate geometry and NaN disparities inside a frame are dropped
 point by point, StereoFrame.rejected).
@@ -359,9 +360,10 @@ class StereoSesNode(Node):
         self._info_size: dict[str, tuple[int, int]] = {}
         self._in_saccade = False
         self._settled_at = -math.inf                  # stamp of the last saccade's end
-        self._awaiting_saccade_until = -math.inf      # monotonic deadline after a command
+        self._awaiting_saccade_until = -math.inf      # node-clock deadline after a command
         self._frames_since_settle = 0
-        self._last_command = -math.inf
+        self._last_command = -math.inf                # node clock [s] (sim time in the graph)
+        self._last_pair_taken = -math.inf             # stamp [s] of the last pair handed over
         self._pipeline: StereoPipeline | None = None
         self._pipeline_dirty = False
         self._ses = self._new_ses()
@@ -414,8 +416,7 @@ class StereoSesNode(Node):
         # guarded: cells racing with Ctrl-C end spin quietly (ExternalShutdownException)
         self._cells_tick = guarded(self, 'ego-sphere cells failed', self._on_cells_timer)
         self._cells_timer = self.create_timer(1.0 / self._p['cells_rate_hz'], self._cells_tick)
-        self._worker = LatestWorker('stereo_ses_worker', self._work,
-                                    lambda: 1.0 / self._p['max_rate_hz'])
+        self._worker = LatestWorker('stereo_ses_worker', self._work)
         p = self._p
         self.get_logger().info(
             f'stereo on {self._image_subs["left"].topic_name} + '
@@ -474,7 +475,7 @@ class StereoSesNode(Node):
         if msg.status in (GazeState.STATUS_REJECTED_NAN, GazeState.STATUS_REJECTED_UNKNOWN_FRAME,
                           GazeState.STATUS_REJECTED_UNREACHABLE,
                           GazeState.STATUS_REJECTED_INVALID) and self.last_decision is not None \
-                and time.monotonic() - self._last_command < SACCADE_START_TIMEOUT_S:
+                and self._clock_s() - self._last_command < SACCADE_START_TIMEOUT_S:
             # the status of the command just sent (the controller answers at once)
             with self._lock:        # not chosen again (until the ego-sphere is rebuilt)
                 self._refused.add(self.last_decision.cell)
@@ -507,9 +508,16 @@ class StereoSesNode(Node):
                 others[:] = [m for m in others if stamp_seconds(m.header.stamp) > t_other]
                 mine.clear()
                 pair = Pair(msg if eye == 'left' else match, match if eye == 'left' else msg, t)
-                if self._worker.put(pair):
-                    self.pairs_dropped += 1       # the worker is busy: newest pair wins
                 self.pairs_received += 1
+                # max_rate_hz in the images' own time (sim time in the graph): a loaded
+                # machine fuses the same pairs, later, not fewer per second of video
+                period = 1.0 / self._p['max_rate_hz']
+                if self._last_pair_taken - 1.0 < t < self._last_pair_taken + period:
+                    self.pairs_dropped += 1       # (a stamp far back: time was reset)
+                else:
+                    self._last_pair_taken = t
+                    if self._worker.put(pair):
+                        self.pairs_dropped += 1   # the worker is busy: newest pair wins
             self.images_unpaired += sum(len(gone) for gone in unpaired.values())
         for gone_eye, gone in unpaired.items():
             partner = 'right' if gone_eye == 'left' else 'left'
@@ -655,7 +663,7 @@ class StereoSesNode(Node):
         if bad:
             self.get_logger().debug(f'frame: {report.summary()}; stereo rejected {bad}')
         with self._lock:
-            if time.monotonic() >= self._awaiting_saccade_until:
+            if self._clock_s() >= self._awaiting_saccade_until:
                 self._frames_since_settle += 1
             fixated = self._fixated
             if (fixated is not None
@@ -679,11 +687,16 @@ class StereoSesNode(Node):
 
     # --- decision and outputs -------------------------------------------------------------------
 
+    def _clock_s(self) -> float:
+        """The node's clock [s]: sim time in the graph (decisions follow the simulation, not
+        the machine's speed)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
     def _decide(self) -> None:
         p = self._p
         if not p['publish_gaze']:
             return
-        now = time.monotonic()
+        now = self._clock_s()
         with self._lock:
             ready = (not self._in_saccade and now >= self._awaiting_saccade_until
                      and self._frames_since_settle >= p['frames_per_fixation']
