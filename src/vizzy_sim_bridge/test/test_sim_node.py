@@ -308,3 +308,64 @@ def test_image_box_projects_and_clips() -> None:
     assert (v1 - v0) == pytest.approx(k[1, 1] * 1.7 / 2.75, rel=0.15)
     behind = cam[:3, 3] - 3.0 * cam[:3, 2]
     assert image_box(k, cam, box_corners(behind, (0.5, 0.5, 1.7), (0, 0, 0, 1)), 640, 480) is None
+
+
+def test_lockstep_advances_only_as_asked_and_keeps_each_output_on_its_schedule() -> None:
+    """In lockstep the sim stands still until asked on sim/step, then publishes every /clock
+    tick up to the time asked, the images on their sim-time schedule, and sim/stepped."""
+    try:
+        render_mod.select_backend()
+    except render_mod.RendererUnavailable as exc:
+        pytest.skip(str(exc))
+    ctx = Context()
+    ctx.init(['test'])
+    # in a namespace of its own: the module's real-time sim may still run in this domain
+    sim = SimNode(context=ctx, cli_args=['--ros-args', '-r', '__ns:=/lockstep'],
+                  parameter_overrides=[*OVERRIDES, Parameter('rate_hz', value=10.0),
+                                       Parameter('rgbd_rate_hz', value=0.0),
+                                       Parameter('lockstep', value=True)])
+    peer = Node('stepper', context=ctx, start_parameter_services=False)
+    clocks: list[float] = []
+    stepped: list[float] = []
+    images: list[float] = []
+    peer.create_subscription(Clock, '/lockstep/clock',
+                             lambda m: clocks.append(m.clock.sec + 1e-9 * m.clock.nanosec), 100)
+    peer.create_subscription(Clock, '/lockstep/sim/stepped',
+                             lambda m: stepped.append(m.clock.sec + 1e-9 * m.clock.nanosec), 10)
+    peer.create_subscription(Image, '/lockstep/vizzy/left/image_raw',
+                             lambda m: images.append(m.header.stamp.sec
+                                                     + 1e-9 * m.header.stamp.nanosec), 10)
+    step = peer.create_publisher(Clock, '/lockstep/sim/step', 10)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(sim)
+    executor.add_node(peer)
+    try:
+        assert wait_until(lambda: step.get_subscription_count() > 0
+                          and sim._stepped_pub.get_subscription_count() > 0, TIMEOUT,
+                          spin=executor)
+        for _ in range(50):                     # nothing asked: time stands still
+            executor.spin_once(0.01)
+        assert clocks == [] and images == [] and sim.ticks == 0
+
+        def ask(t: float) -> None:
+            msg = Clock()
+            msg.clock.sec, msg.clock.nanosec = int(t), int(round((t - int(t)) * 1e9))
+            step.publish(msg)
+            assert wait_until(lambda: stepped and stepped[-1] >= t - 1e-9, TIMEOUT,
+                              spin=executor)
+
+        ask(0.05)
+        assert clocks == pytest.approx([0.01, 0.02, 0.03, 0.04, 0.05])
+        assert wait_until(lambda: len(images) == 1, TIMEOUT, spin=executor)
+        ask(0.25)
+        assert wait_until(lambda: len(clocks) == 25 and len(images) == 3, TIMEOUT, spin=executor)
+        assert images == pytest.approx([0.01, 0.1, 0.2])        # 10 Hz of sim time
+        assert stepped[-1] == pytest.approx(0.25) and sim.ticks == 25
+        ask(0.1)                                # the past: answered at once, nothing moves
+        assert sim.ticks == 25
+    finally:
+        executor.remove_node(peer)
+        executor.remove_node(sim)
+        peer.destroy_node()
+        sim.destroy_node()
+        ctx.try_shutdown()

@@ -123,6 +123,9 @@ JOINT_STATES_TOPIC = 'joint_states'
 CLOCK_TOPIC = 'clock'          # nodes with use_sim_time follow /clock: a namespaced graph remaps it
 GROUND_TRUTH_TOPIC = 'sim/ground_truth'
 ROBOT_DESCRIPTION_TOPIC = 'robot_description'   # relative, like robot_state_publisher's
+STEP_TOPIC = 'sim/step'           # lockstep: rosgraph_msgs/Clock, advance until this time
+STEPPED_TOPIC = 'sim/stepped'     # lockstep: rosgraph_msgs/Clock, the time reached
+STEP_QOS = QoSProfile(depth=10)
 # Drivers publish sensor data reliable (REP 2003): best-effort and reliable subscribers both match.
 SENSOR_QOS = QoSProfile(depth=5)
 # destroy_node() waits at most this for the render thread's frame in flight (one stereo pair or
@@ -175,6 +178,11 @@ PARAMETERS: tuple[Param, ...] = (
           '(read-only). The sim itself must run with use_sim_time false.', read_only=True),
     Param('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in (0, 1000] (read-only).',
           '(0, 1000]', read_only=True),
+    Param('lockstep', False,
+          'Advance simulated time only as far as asked on sim/step, one /clock tick at a time, '
+          'and say how far on sim/stepped (read-only). For benchmarks: whoever asks waits for '
+          'the graph to finish each tick, so results do not depend on the machine\'s speed. '
+          'Off: real time.', read_only=True),
 )
 READ_ONLY = frozenset(p.name for p in PARAMETERS if p.read_only)
 
@@ -296,6 +304,14 @@ def image_box(k: np.ndarray, camera_pose: np.ndarray, corners: np.ndarray, width
     return float(u0), float(v0), float(u1), float(v1)
 
 
+def _next_due(due: float, t: float, rate_hz: float) -> float:
+    """The next sim time a periodic output is due after it went out at t (due was its slot):
+    the phase is kept unless it fell a whole period behind."""
+    period = 1.0 / rate_hz
+    nxt = due + period
+    return nxt if nxt > t else t + period
+
+
 class SimNode(Node):
     """The simulated Vizzy head: physics, cameras, RGB-D, joints, tf, /clock, ground truth."""
 
@@ -384,15 +400,26 @@ class SimNode(Node):
             [world_transform()] + static_transforms(), now)))
         self._publish_ground_truth()
 
-        self._sim.start()
-        self._start_rendering()
-        self._joint_timer = self.create_timer(1.0 / float(p['joint_state_rate_hz']), guarded(
-            self, 'joint state publishing failed', self._on_joint_tick))
-        self._gt_timer = self.create_timer(1.0 / float(p['ground_truth_rate_hz']), guarded(
-            self, 'ground truth publishing failed', self._publish_ground_truth))
-        if self._clock_pub is not None:
-            self._clock_timer = self.create_timer(1.0 / float(p['clock_rate_hz']), guarded(
-                self, '/clock publishing failed', self._on_clock))
+        self._lockstep = bool(p['lockstep'])
+        self._step_target = 0.0
+        self._step_cond = threading.Condition()
+        self.ticks = 0                          # lockstep ticks done
+        if self._lockstep:
+            # one thread steps the physics, publishes and renders, tick by tick, as asked
+            self._stepped_pub = self.create_publisher(Clock, STEPPED_TOPIC, STEP_QOS)
+            self._step_sub = self.create_subscription(Clock, STEP_TOPIC, guarded(
+                self, 'failed on a step', self._on_step), STEP_QOS)
+            self._start_rendering(self._lockstep_loop)
+        else:
+            self._sim.start()
+            self._start_rendering(self._render_loop)
+            self._joint_timer = self.create_timer(1.0 / float(p['joint_state_rate_hz']), guarded(
+                self, 'joint state publishing failed', self._on_joint_tick))
+            self._gt_timer = self.create_timer(1.0 / float(p['ground_truth_rate_hz']), guarded(
+                self, 'ground truth publishing failed', self._publish_ground_truth))
+            if self._clock_pub is not None:
+                self._clock_timer = self.create_timer(1.0 / float(p['clock_rate_hz']), guarded(
+                    self, '/clock publishing failed', self._on_clock))
         log.info(
             f'scene {p["scene"]} (seed {p["seed"]}): {self._scene.description}; '
             f'{eye.width}x{eye.height} stereo at {p["rate_hz"]} Hz, RGB-D at {p["rgbd_rate_hz"]} '
@@ -402,7 +429,9 @@ class SimNode(Node):
             f'{self._rgbd_points_pub.topic_name}, {self._joint_pub.topic_name}, '
             f'{self._tf_pub.topic_name}, {self._description_pub.topic_name}'
             f'{", " + self._clock_pub.topic_name if self._clock_pub is not None else ""}; '
-            f'joint targets on {self._command_sub.topic_name}')
+            f'joint targets on {self._command_sub.topic_name}'
+            + (f'; LOCKSTEP: time advances only as asked on {self._step_sub.topic_name}'
+               if self._lockstep else ''))
 
     # ------------------------------------------------------------------ helpers
     def _now(self, t: float) -> Any:
@@ -464,9 +493,10 @@ class SimNode(Node):
         s = self._sim.sample()
         self._publish_joints(s.time, s.position, s.velocity, s.effort)
 
-    def _start_rendering(self) -> None:
-        """The render thread: its own GL context, paced by rate_hz and rgbd_rate_hz, so the
-        executor stays free for joint commands, /joint_states, /tf and /clock."""
+    def _start_rendering(self, loop: Any) -> None:
+        """The render thread: its own GL context, running loop(renderer): _render_loop, paced by
+        rate_hz and rgbd_rate_hz (the executor stays free for joint commands, /joint_states, /tf
+        and /clock), or _lockstep_loop."""
         ready = threading.Event()
         failure: list[BaseException] = []
 
@@ -481,7 +511,7 @@ class SimNode(Node):
                 return
             ready.set()
             try:
-                self._render_loop(renderer)
+                loop(renderer)
             finally:
                 renderer.close()
 
@@ -522,6 +552,55 @@ class SimNode(Node):
             wait = min(due.values()) - time.monotonic()
             if wait > 0:
                 self._stop.wait(wait)
+
+    def _on_step(self, msg: Any) -> None:
+        """Lockstep: advance until msg.clock (a request for a past time is done already)."""
+        t = msg.clock.sec + 1e-9 * msg.clock.nanosec
+        with self._step_cond:
+            if t > self._step_target:
+                self._step_target = t
+                self._step_cond.notify_all()
+
+    def _lockstep_loop(self, renderer: CameraRenderer) -> None:
+        """Lockstep: per /clock tick, step the physics, then publish /joint_states and /tf,
+        /clock, the images and clouds due (on the sim-time schedule of their rates) and the
+        ground truth; after the last tick asked for, sim/stepped. Ends like _render_loop."""
+        self._renderer = renderer
+        sim = self._sim
+        tick = 1.0 / float(self._p['clock_rate_hz'])
+        substeps = max(1, int(round(tick / sim.dt)))
+        due = {'joints': 0.0, 'stereo': 0.0, 'rgbd': 0.0, 'gt': 0.0}
+        work = {'stereo': self._on_render, 'rgbd': self._on_rgbd,
+                'gt': self._publish_ground_truth}
+        eps = 0.25 * sim.dt
+        try:
+            while not self._stop.is_set():
+                with self._step_cond:
+                    if self._step_target <= sim.time + eps:
+                        self._step_cond.wait(0.1)
+                        continue
+                    target = self._step_target
+                while sim.time + eps < target and not self._stop.is_set():
+                    sim.step(substeps)
+                    self.ticks += 1
+                    t = sim.time
+                    rates = {'joints': float(self._p['joint_state_rate_hz']),
+                             'stereo': float(self._p['rate_hz']),
+                             'rgbd': float(self._p['rgbd_rate_hz']),
+                             'gt': float(self._p['ground_truth_rate_hz'])}
+                    if t + eps >= due['joints']:
+                        due['joints'] = _next_due(due['joints'], t, rates['joints'])
+                        s = sim.sample()
+                        self._publish_joints(s.time, s.position, s.velocity, s.effort)
+                    if self._clock_pub is not None:
+                        publish_from_thread(self, self._clock_pub, Clock(clock=self._now(t)))
+                    for key in ('stereo', 'rgbd', 'gt'):
+                        if rates[key] > 0.0 and t + eps >= due[key]:
+                            due[key] = _next_due(due[key], t, rates[key])
+                            work[key]()
+                publish_from_thread(self, self._stepped_pub, Clock(clock=self._now(sim.time)))
+        except ExternalShutdownException:
+            return
 
     def _on_render(self) -> None:
         t, q = self._snapshot()
@@ -633,6 +712,8 @@ class SimNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if getattr(self, '_lockstep', False):
+            return                  # the lockstep loop reads the rates at every tick
         if 'joint_state_rate_hz' in changed:
             self._joint_timer = replace_timer(self, self._joint_timer,
                                               1.0 / float(changed['joint_state_rate_hz']),
@@ -648,6 +729,10 @@ class SimNode(Node):
         stop = getattr(self, '_stop', None)
         if stop is not None:
             stop.set()
+        cond = getattr(self, '_step_cond', None)
+        if cond is not None:
+            with cond:
+                cond.notify_all()
         thread = getattr(self, '_render_thread', None)
         if thread is not None:  # one frame in flight at most; a later publish is dropped
             thread.join(timeout=RENDER_JOIN_TIMEOUT_S)
