@@ -1,5 +1,8 @@
 """Scoring an object map against ground truth: recall, precision and false objects.
 
+Shared by bench/active_perception.py and the demo's summary page (vizzy_object_map publishes the
+maps; this module only compares labelled points).
+
 A true object is *found* when a map object with its label lies within the radius of its centre;
 map objects and true objects are paired one to one (the Hungarian assignment on distance among
 the pairs with equal labels within the radius), so two map objects on one true object count
