@@ -174,6 +174,10 @@ PARAMETERS: tuple[Param, ...] = (
           constraints='finite'),
     Param('fixation_v', -1.0, 'Fixation row [px]; negative: the image centre.',
           constraints='finite'),
+    Param('space_variant', True,
+          'Foveate (thesis chapter 2). False: the uniform-resolution baseline: the published '
+          'image and both recognition passes use the unfoveated frame (bench/active_perception.py'
+          '\'s uniform configuration).'),
     Param('follow_gaze', False,
           f'Fixate the principal point of {CAMERA_INFO_TOPIC} (where the gaze fixation point of '
           f'{GAZE_STATE_TOPIC} projects) instead of fixation_u/v.'),
@@ -277,6 +281,11 @@ def fixation_for(width: int, height: int, u: float, v: float) -> tuple[float, fl
     u0 = (width - 1) / 2.0 if u < 0 else float(u)
     v0 = (height - 1) / 2.0 if v < 0 else float(v)
     return check_fixation((u0, v0), width, height)
+
+
+def _unfoveated(image: np.ndarray, fixation: tuple[float, float]) -> np.ndarray:
+    """The uniform-resolution sensor: the frame as it is, wherever the fixation."""
+    return image
 
 
 def encode_jpeg(image: np.ndarray, encoding: str, quality: int) -> bytes:
@@ -467,7 +476,7 @@ class FoveationNode(Node):
         except ValueError as exc:   # the parameters are checked: only min(W, H) < 2^levels
             self.input_health.refuse(self._image_topic, TOO_SMALL_FOR_LEVELS, str(exc))
             return
-        out = foveator.foveate(image, fixation)
+        out = foveator.foveate(image, fixation) if self._p['space_variant'] else image
         self._pub.publish(numpy_to_image(out, msg.encoding, header=msg.header))
 
         quality = self._p['jpeg_quality']
@@ -522,7 +531,8 @@ class FoveationNode(Node):
         except ValueError as exc:
             self._warn_throttled('recognition', f'recognition skipped: {exc}')
             return None
-        result = two_pass(classifier, rgb, fixation, foveator.foveate, self._p['top_k'],
+        foveate = foveator.foveate if self._p['space_variant'] else _unfoveated
+        result = two_pass(classifier, rgb, fixation, foveate, self._p['top_k'],
                           self._p['saliency_threshold'])
         self.last_recognition_ms = 1000.0 * (time.perf_counter() - t0)
         for detections in (result.first, result.second):
@@ -533,7 +543,7 @@ class FoveationNode(Node):
         if self._p['publish_overlay']:
             boxes = [Box(d.box[0], d.box[1], d.box[2] - d.box[0] + 1, d.box[3] - d.box[1] + 1,
                          d.label, d.score, d.pass_index) for d in (*result.first, *result.second)]
-            drawn = draw_overlay(foveator.foveate(rgb, fixation), boxes, fixation,
+            drawn = draw_overlay(foveate(rgb, fixation), boxes, fixation,
                                  float(self._p['f0']))
             publish_from_thread(self, self._overlay_pub,
                                 numpy_to_image(drawn, 'rgb8', header=msg.header))
