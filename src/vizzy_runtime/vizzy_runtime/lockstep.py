@@ -33,7 +33,7 @@ BUSY_STATES = frozenset('RD')
 
 def _thread_states(pid: int) -> list[str]:
     """The scheduler state letter of each thread of process pid ([] when it is gone)."""
-    states = []
+    states: list[str] = []
     try:
         tids = os.listdir(f'/proc/{pid}/task')
     except OSError:
