@@ -221,6 +221,26 @@ def map_score(last_map: Any, truth: list[Any]) -> dict[str, Any]:
     return out
 
 
+def map_objects(last_map: Any, truth: list[Any]) -> list[dict[str, Any]]:
+    """Every object of the last map with the nearest true object: what went right or wrong."""
+    out = []
+    centres = np.array([o.position for o in truth]).reshape(-1, 3)
+    for o in (last_map.objects if last_map is not None else []):
+        p = np.array([o.position.x, o.position.y, o.position.z])
+        d = np.linalg.norm(centres - p, axis=1) if len(centres) else np.array([np.inf])
+        i = int(np.argmin(d))
+        out.append({'label': o.label, 'share': round(o.label_share, 3),
+                    'labels': dict(zip(o.labels, (round(v, 3) for v in o.shares),
+                                       strict=False)),
+                    'confirmed': o.confirmed, 'recognitions': o.recognitions,
+                    'geometry': o.geometry_observations,
+                    'position': [round(float(v), 3) for v in p],
+                    'nearest': truth[i].kind if len(truth) else None,
+                    'nearest_name': truth[i].name if len(truth) else None,
+                    'distance_m': round(float(d[i]), 3)})
+    return out
+
+
 def on_target(joints: np.ndarray, target: np.ndarray) -> bool:
     """Whether the left camera's optical axis points within TARGET_DEG of target (base_link)."""
     pose = frames_in_base(joints.tolist())[CAMERA_FRAMES['left']]
@@ -337,6 +357,7 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
     if scene == 'tabletop':
         result.update(map_score(run.last_map, truth))
         result['truths'] = len(truth)
+        result['final_objects'] = map_objects(run.last_map, truth)
     if scene == 'visual_search':
         result['s_to_target'] = run.found_target_s
         result['saccades_to_target'] = run.saccades_to_target
