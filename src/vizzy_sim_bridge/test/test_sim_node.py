@@ -355,6 +355,8 @@ def test_lockstep_advances_only_as_asked_and_keeps_each_output_on_its_schedule()
                               spin=executor)
 
         ask(0.05)
+        # /clock and sim/stepped are two topics: no order between them on the wire
+        assert wait_until(lambda: len(clocks) >= 5, TIMEOUT, spin=executor)
         assert clocks == pytest.approx([0.01, 0.02, 0.03, 0.04, 0.05])
         assert wait_until(lambda: len(images) == 1, TIMEOUT, spin=executor)
         ask(0.25)
