@@ -73,6 +73,7 @@ class _Story:
         self._was_in_saccade = False
         self.most: dict[str, int] = {}                 # topic -> most items in one message
         self.labels: Counter[str] = Counter()          # foveation's best final-pass label
+        self.last_map: Any = None                      # the last /objects/map
 
     def add(self, topic: str, msg: Any) -> None:
         if topic == '/gaze/command':
@@ -81,6 +82,8 @@ class _Story:
             self.holder[msg.active_source or 'idle'] += 1
             self.saccades += msg.in_saccade and not self._was_in_saccade
             self._was_in_saccade = msg.in_saccade
+        elif topic == '/objects/map':
+            self.last_map = msg
         for field in ('tracks', 'cylinders', 'detections'):
             items = getattr(msg, field, None)
             if items is not None:
@@ -105,11 +108,22 @@ class _Story:
         if self.labels:
             out.append('foveation best label per recognition: '
                        + ', '.join(f'{k} x{v}' for k, v in self.labels.most_common(5)))
+        if self.last_map is not None:
+            objects = list(self.last_map.objects)
+            named = Counter(o.label for o in objects if o.confirmed)
+            unnamed = sum(o.established and not o.confirmed for o in objects)
+            out.append(f'object map at the end: {sum(named.values())} confirmed'
+                       + (' (' + ', '.join(f'{k} x{v}' for k, v in sorted(
+                           named.items(), key=lambda kv: (-kv[1], kv[0]))) + ')'
+                          if named else '')
+                       + f', {unnamed} established unconfirmed, '
+                       f'{len(objects) - sum(named.values()) - unnamed} tentative '
+                       '(scored against the ground truth on summary.png)')
         return out
 
 
 STORY_TOPICS = ('/gaze/command', '/gaze/state', '/cylinders', '/mot/tracks',
-                '/foveation/detections')
+                '/foveation/detections', '/objects/map')
 
 
 def summarize(bag_dir: Path, out_dir: Path) -> dict[str, Any]:
