@@ -73,14 +73,7 @@ from vizzy_object_map.core.observations import (
 from vizzy_runtime.convert import ConversionError, pointcloud2_to_array, stamp_seconds
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
-from vizzy_runtime.ros import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    Node,
-    QoSProfile,
-    ReliabilityPolicy,
-    message,
-)
+from vizzy_runtime.ros import Node, message, qos_profile_latched
 from vizzy_runtime.tf import FramePoses, TransformBuffer, TransformListener
 from vizzy_vision.frames import rotation_matrix
 
@@ -118,9 +111,6 @@ NO_FRAME_ID = 'no frame_id'
 NO_POSE = 'no pose'
 NON_FINITE = 'non-finite values'
 NO_XYZ = 'no xyz fields'
-MAP_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: a stereo cloud is kept this long for recognitions that find no object [s]
 STEREO_MAX_POINTS = 20000
 
@@ -311,9 +301,10 @@ class ObjectMapNode(Node):
         self._tf = TransformBuffer()
         self.poses = FramePoses(self._tf, self._p['map_frame'], max_age_s=self._p['tf_history_s'])
         self._tf_listener = TransformListener(self._tf, self, on_update=self.poses.on_tf)
-        self._objects_pub = self.create_publisher(Detection3DArray, OBJECTS_TOPIC, MAP_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MAP_QOS)
-        self._map_pub = self.create_publisher(MapObjectArray, MAP_TOPIC, MAP_QOS)
+        self._objects_pub = self.create_publisher(Detection3DArray, OBJECTS_TOPIC,
+                                                  qos_profile_latched)
+        self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, qos_profile_latched)
+        self._map_pub = self.create_publisher(MapObjectArray, MAP_TOPIC, qos_profile_latched)
 
         self._topics = {name: self.resolve_topic_name(name) for name in (
             DETECTIONS_TOPIC, CAMERA_INFO_TOPIC, CLUSTERS_TOPIC, CYLINDERS_TOPIC, STEREO_TOPIC)}

@@ -49,6 +49,7 @@ def scene() -> fl.ThreeDeePanel:
         '/stereo/points': _by_information(3.0),
         '/ses/cells': _by_information(8.0),
         '/cylinders/markers': fl.BaseRendererRosMarkerTopicSettings(visible=True),
+        '/objects/markers': fl.BaseRendererRosMarkerTopicSettings(visible=True),
         '/sim/ground_truth/objects': fl.BaseRendererRosMarkerTopicSettings(
             visible=True, color='#ffffff55'),
     }
@@ -56,7 +57,7 @@ def scene() -> fl.ThreeDeePanel:
         'grid': fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=4, divisions=8),
         'head': fl.BaseRendererUrdfLayerSettings(source_type='topic', topic='/robot_description'),
     }
-    return fl.ThreeDeePanel(title='Head, 3D points, ego-sphere, cylinders',
+    return fl.ThreeDeePanel(title='Head, 3D points, ego-sphere, cylinders, object map',
                             config=fl.ThreeDeeConfig(
         follow_tf=FIXED_FRAME, fixed_frame=FIXED_FRAME, topics=topics, layers=layers))
 
