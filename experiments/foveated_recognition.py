@@ -33,8 +33,10 @@ renders of tabletop(seed) for seeds not used in training, the demo's head pose p
 ones, two-pass recognition (f_0 = 100, the node's default) from the image centre and from
 random fixations. A case is right when the final best label (pass 2's first) is the class of
 the object under its saliency box's centre (of the unoccluded objects whose box holds that
-point, the nearest; else the nearest). Chance: 1/7, and always answering the commonest class
-of the objects picked. Writes foveated_recognition_tabletop.json.
+point, the nearest; else the nearest). A case where pass 2 reports nothing (a model with the
+background class rejected every candidate) is wrong; its fraction is no_detection. Chance: 1/7,
+and always answering the commonest class of the objects picked. Writes
+foveated_recognition_tabletop.json.
 
 --images DIR --models A.pt B.pt ... (only that part): Figs. 2.7-2.10 on real photographs with
 any TorchScript classifiers (e.g. the EfficientNet-Lite ImageNet networks written by
@@ -246,7 +248,7 @@ def main() -> int:
     per_class = 1 if args.quick else args.per_class
     f0s = (30.0, 100.0, 250.0) if args.quick else F0S
     clf = Classifier(args.model, args.labels)
-    assert clf.labels == list(CLASSES), (clf.labels, CLASSES)
+    assert clf.labels[:len(CLASSES)] == list(CLASSES), (clf.labels, CLASSES)   # + background
     t0 = time.perf_counter()
     with ObjectViews(W, H, seed=args.seed) as ov:
         views = ov.dataset(per_class * len(CLASSES), seed=args.seed)
@@ -389,7 +391,9 @@ def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: floa
 
     rng = np.random.default_rng(seed0)
     foveator = Foveator(W, H, LEVELS, f0)
-    rows = []          # (centred, final right, pass-1 right, final in scene, final, true class)
+    # (centred, final right, pass-1 right, final in scene, final, true class, no detection);
+    # no pass-2 detection (the reject class won everywhere): final = -1, wrong
+    rows = []
     n_views = 0
     with TabletopViews(W, H) as tv:
         for s in tqdm(range(seed0, seed0 + seeds), desc='tabletop scenes', unit='scene'):
@@ -407,12 +411,15 @@ def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: floa
                                         for _ in range(TABLETOP_FIXATIONS)]
                 for j, fix in enumerate(fixations):
                     res = two_pass(clf, view.rgb, fix, foveator.foveate, top_k=5, threshold=0.7)
-                    best, first = res.second[0], res.first[0]
+                    first = res.first[0]
+                    best = res.second[0] if res.second else first       # its box: the truth
                     truth = object_at(view.objects, *best.centre)
                     truth1 = object_at(view.objects, *first.centre)
-                    rows.append((j == 0, best.class_id == truth.label,
-                                 first.class_id == truth1.label, best.class_id in present,
-                                 best.class_id, truth.label))
+                    found = bool(res.second)
+                    rows.append((j == 0, found and best.class_id == truth.label,
+                                 first.class_id == truth1.label,
+                                 found and best.class_id in present,
+                                 best.class_id if found else -1, truth.label, not found))
     r = np.array(rows, int)
     centred = r[:, 0] == 1
     true_hist = np.bincount(r[:, 5], minlength=len(CLASSES))
@@ -424,10 +431,11 @@ def tabletop_accuracy(clf: Classifier, seeds: int = 20, poses: int = 4, f0: floa
            'final_accuracy_random_fixation': float(r[~centred, 1].mean()),
            'pass1_accuracy': float(r[:, 2].mean()),
            'final_label_in_scene': float(r[:, 3].mean()),
+           'no_detection': float(r[:, 6].mean()),
            'chance_uniform': 1.0 / len(CLASSES),
            'chance_commonest_class': float(true_hist.max() / len(r)),
            'final_labels': {c: int(n) for c, n in
-                            zip(CLASSES, np.bincount(r[:, 4], minlength=len(CLASSES)),
+                            zip(CLASSES, np.bincount(r[r[:, 4] >= 0, 4], minlength=len(CLASSES)),
                                 strict=True)},
            'true_classes': {c: int(n) for c, n in zip(CLASSES, true_hist, strict=True)}}
     per_class = {}
@@ -461,7 +469,8 @@ def run_tabletop(args: argparse.Namespace) -> int:
           f'{res["final_accuracy_random_fixation"]:.3f}); pass 1 {res["pass1_accuracy"]:.3f}; '
           f'chance {res["chance_uniform"]:.3f} / commonest class '
           f'{res["chance_commonest_class"]:.3f}')
-    print(f'final labels {res["final_labels"]}; true classes {res["true_classes"]}')
+    print(f'final labels {res["final_labels"]}; true classes {res["true_classes"]}; no '
+          f'detection {res["no_detection"]:.3f}')
     print(json.dumps({'tabletop_final_accuracy': res['final_accuracy'],
                       'tabletop_pass1_accuracy': res['pass1_accuracy'],
                       'chance_commonest_class': res['chance_commonest_class']}))
@@ -1143,13 +1152,14 @@ def example(clf: Classifier, views: list, foveator: Foveator, path: Path) -> Non
     view, res = by_distance[0], None
     for candidate in by_distance:
         r = two_pass(clf, candidate.rgb, CENTRE, foveator.foveate, 5, 0.7)
-        if r.first[0].class_id != candidate.label and r.second[0].class_id == candidate.label:
+        if r.first[0].class_id != candidate.label and r.second and \
+                r.second[0].class_id == candidate.label:
             view, res = candidate, r
             break
     if res is None:
         res = two_pass(clf, view.rgb, CENTRE, foveator.foveate, 5, 0.7)
     one = cv2.cvtColor(foveator.foveate(view.rgb, CENTRE), cv2.COLOR_RGB2BGR)
-    best = res.second[0]
+    best = res.second[0] if res.second else res.first[0]     # none: rejected as background
     two = cv2.cvtColor(foveator.foveate(view.rgb, best.fixation), cv2.COLOR_RGB2BGR)
     for d in res.first:
         cv2.rectangle(one, d.box[:2], d.box[2:], (0, 0, 255), 2)

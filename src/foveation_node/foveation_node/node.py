@@ -66,8 +66,11 @@ saccade_min_offset_px of the principal point. model_path / labels_path: a TorchS
 its labels (package://foveation_node/... means inside the installed package; an empty
 model_path disables recognition); a path that is no file is refused like any bad parameter value
 (at start-up: one line and exit 2); a file that does not load is logged and recognition stays off.
-The default model knows the simulator's 7 object classes; for real scenes, point model_path /
-labels_path at an ImageNet network written by export_imagenet_classifier (EfficientNet-Lite).
+The default model knows the simulator's 7 object classes and 'background' (the reject class,
+core.recognition.BACKGROUND_LABEL: never published as a detection, localised or saccaded to; a
+pass-2 label must beat it on its own image, so a view of a wall gives no pass-2 detection); for
+real scenes, point model_path / labels_path at an ImageNet network written by
+export_imagenet_classifier (EfficientNet-Lite).
 Algorithms live in foveation_node.core; this module only wires them to topics and parameters.
 """
 

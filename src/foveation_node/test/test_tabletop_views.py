@@ -13,6 +13,7 @@ pytest.importorskip('mujoco')
 render_mod = pytest.importorskip('vizzy_sim_bridge.core.render')
 
 SEEDS = (900, 901, 902, 903)          # experiment: 500-519; training: >= 10000
+REJECTED_AT_OBJECTS = 0.10            # fixed after the model's held-out figures (docs)
 
 
 def _obj(label: int, box: tuple[int, int, int, int], visible: bool = True) -> TableObject:
@@ -68,9 +69,26 @@ def test_two_pass_names_the_object_under_its_box(views) -> None:
     right, cases = 0, 0
     for view in views:
         for fix in [(319.5, 239.5)] + [tuple(rng.uniform((0, 0), (639, 479))) for _ in range(3)]:
-            best = two_pass(clf, view.rgb, fix, fov.foveate, top_k=5, threshold=0.7).second[0]
-            right += best.class_id == object_at(view.objects, *best.centre).label
+            second = two_pass(clf, view.rgb, fix, fov.foveate, top_k=5, threshold=0.7).second
             cases += 1
+            if not second:                 # every candidate rejected as background: wrong
+                continue
+            best = second[0]
+            right += best.class_id == object_at(view.objects, *best.centre).label
     # chance: 1/7 = 0.14 (always the commonest class here: ~0.3); the model trained on single
     # objects only got 0.30 on the experiment's scenes
     assert right / cases >= 0.4, f'{right} of {cases} final labels name the object under the box'
+
+
+def test_objects_on_the_table_are_seldom_rejected_as_background(views) -> None:
+    from foveation_node.core.foveation import Foveator
+    from foveation_node.core.recognition import Classifier
+    from foveation_node.node import DEFAULT_LABELS, DEFAULT_MODEL, resolve_path
+
+    clf = Classifier(resolve_path(DEFAULT_MODEL), resolve_path(DEFAULT_LABELS))
+    fov = Foveator(640, 480, 5, 100.0)
+    images = [fov.foveate(view.rgb, o.centre) for view in views for o in view.objects
+              if o.visible]
+    top1 = clf.classify(images).argmax(axis=1)
+    rejected = float((top1 == clf.reject_class).mean())
+    assert rejected <= REJECTED_AT_OBJECTS, f'{rejected:.2f} of {len(images)} object fixations'

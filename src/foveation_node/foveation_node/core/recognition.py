@@ -13,6 +13,13 @@ Fig. 2.5).
   localises its top-k classes; the fovea moves to each box centre and pass 2 re-classifies
   the k re-foveated images (one batched forward pass); the k x k labels are sorted by score
   and the best non-repeated ones are the result.
+- Reject class: a model whose labels include BACKGROUND_LABEL ('background', "no object at the
+  fixation") has it as `Classifier.reject_class`. It is never a detection, never localised and
+  never a saccade target: pass 1 localises the top-k object classes (background left out: they
+  are the candidates pass 2 looks at, even when the initial fixation is on background), and a
+  pass-2 label counts only where its probability exceeds background's on the image it was seen
+  in (a row whose best class is background gives nothing), so pass 2 may return no detection.
+  A model without the label behaves as before.
 
 ROS-free: numpy, OpenCV and torch only.
 """
@@ -35,6 +42,7 @@ IMAGENET_MEAN = (0.485, 0.456, 0.406)                # RGB, of pixels scaled to 
 IMAGENET_STD = (0.229, 0.224, 0.225)
 DEFAULT_THRESHOLD = 0.7                              # th of the segmentation mask (Fig. 2.9)
 DEFAULT_TOP_K = 5
+BACKGROUND_LABEL = 'background'                      # the reject class: no object at the fixation
 
 Box = tuple[int, int, int, int]                      # (x0, y0, x1, y1), inclusive, image px
 Foveate = Callable[[np.ndarray, tuple[float, float]], np.ndarray]
@@ -135,6 +143,9 @@ class Classifier:
     def __init__(self, model_path: str | Path, labels_path: str | Path,
                  preprocessing_path: str | Path | None = None) -> None:
         self.labels = load_labels(labels_path)
+        #: index of BACKGROUND_LABEL (the reject class) in labels, None if the model has none
+        self.reject_class = (self.labels.index(BACKGROUND_LABEL)
+                             if BACKGROUND_LABEL in self.labels else None)
         self.preprocessing = load_preprocessing(
             preprocessing_path if preprocessing_path is not None
             else preprocessing_path_for(model_path))
@@ -168,6 +179,11 @@ class Classifier:
     @property
     def num_classes(self) -> int:
         return len(self.labels)
+
+    @property
+    def object_classes(self) -> list[int]:
+        """Indices of the classes that can be detected: all but the reject class."""
+        return [c for c in range(len(self.labels)) if c != self.reject_class]
 
     # ----------------------------------------------------------------------------------------
 
@@ -251,12 +267,20 @@ def localise(classifier: Classifier, image: np.ndarray, classes: Sequence[int],
     return [classifier.box_to_image(saliency_box(m, threshold), w, h) for m in maps]
 
 
-def merge_second_pass(probs: np.ndarray, top_k: int) -> list[tuple[int, int, float]]:
+def merge_second_pass(probs: np.ndarray, top_k: int,
+                      reject: int | None = None) -> list[tuple[int, int, float]]:
     """Fig. 2.5's choice: the k x k (class, score) pairs of pass 2 (row i: the image foveated at
     box i), sorted by score, the best non-repeated classes first. Returns up to top_k
-    (class, row, score)."""
-    k = min(top_k, probs.shape[1])
-    top = np.argsort(-probs, axis=1)[:, :k]                     # (rows, k)
+    (class, row, score).
+
+    reject: the reject (background) class, or None. Then each row's top-k are its best k other
+    classes, and a pair counts only if its score exceeds the row's reject score (the class beats
+    background where it was seen); fewer than top_k pairs, or none, may remain."""
+    ranked = np.argsort(-probs, axis=1)
+    if reject is not None:
+        ranked = ranked[ranked != reject].reshape(probs.shape[0], -1)
+    k = min(top_k, ranked.shape[1])
+    top = ranked[:, :k]                                         # (rows, k)
     rows = np.repeat(np.arange(probs.shape[0]), k)
     cls = top.ravel()
     score = probs[rows, cls]
@@ -265,6 +289,8 @@ def merge_second_pass(probs: np.ndarray, top_k: int) -> list[tuple[int, int, flo
     seen: set[int] = set()
     for i in order:
         c = int(cls[i])
+        if reject is not None and not score[i] > probs[rows[i], reject]:
+            continue
         if c not in seen:
             seen.add(c)
             out.append((c, int(rows[i]), float(score[i])))
@@ -281,14 +307,19 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     foveate(image, (u, v)) gives the image foveated at (u, v) (same size), e.g.
     `Foveator.foveate`; pass lambda img, fix: img for a uniform-resolution sensor.
     localise_second: also compute each pass-2 label's box (one more batched backward pass).
+    With a reject class (Classifier.reject_class), pass 1 takes the top-k object classes and
+    pass 2 keeps only labels that beat background (merge_second_pass): `second` may be empty.
     """
-    k = min(int(top_k), classifier.num_classes)
-    if k < 1:
+    if int(top_k) < 1:
         raise ValueError(f'top_k must be >= 1, got {top_k}')
+    reject = classifier.reject_class
+    k = min(int(top_k), classifier.num_classes - (reject is not None))
     fixation = (float(fixation[0]), float(fixation[1]))
     first_image = foveate(image, fixation)
     probs1 = classifier.classify(first_image)[0]
-    classes1 = [int(c) for c in np.argsort(-probs1)[:k]]
+    classes1 = [int(c) for c in np.argsort(-probs1) if c != reject][:k]   # never background
+    if not classes1:                                # a model that knows background only
+        return TwoPassResult([], [], probs1, np.zeros((0, classifier.num_classes)))
     boxes1 = localise(classifier, first_image, classes1, threshold)
     first = [Detection(c, classifier.labels[c], float(probs1[c]), b, fixation, 0)
              for c, b in zip(classes1, boxes1, strict=True)]
@@ -296,7 +327,7 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     centres = [d.centre for d in first]
     second_images = [foveate(image, c) for c in centres]
     probs2 = classifier.classify(second_images)
-    chosen = merge_second_pass(probs2, k)
+    chosen = merge_second_pass(probs2, k, reject)
     if localise_second and chosen:
         boxes2 = localise(classifier, image, [c for c, _, _ in chosen], threshold,
                           net_input=[second_images[r] for _, r, _ in chosen])
@@ -311,7 +342,9 @@ def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
                    min_score: float, min_offset_px: float) -> Detection | None:
     """The detection to saccade to: the best-scoring one (detections come best first) if its
     score is at least min_score and its box centre lies at least min_offset_px from centre
-    (the pixel the eyes already fixate: nothing to gain from a saccade of a few pixels)."""
+    (the pixel the eyes already fixate: nothing to gain from a saccade of a few pixels).
+    A BACKGROUND_LABEL detection (two_pass gives none) is never a target."""
+    detections = [d for d in detections if d.label != BACKGROUND_LABEL]
     if not detections:
         return None
     best = max(detections, key=lambda d: d.score)
@@ -321,8 +354,9 @@ def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
     return best if math.hypot(du, dv) >= min_offset_px else None
 
 
-__all__ = ['Box', 'Classifier', 'DEFAULT_INPUT_SIZE', 'DEFAULT_THRESHOLD', 'DEFAULT_TOP_K',
-           'Detection', 'IMAGENET_MEAN', 'IMAGENET_STD', 'ModelError', 'Preprocessing',
+__all__ = ['BACKGROUND_LABEL', 'Box', 'Classifier', 'DEFAULT_INPUT_SIZE', 'DEFAULT_THRESHOLD',
+           'DEFAULT_TOP_K', 'Detection', 'IMAGENET_MEAN', 'IMAGENET_STD', 'ModelError',
+           'Preprocessing',
            'TwoPassResult', 'load_labels', 'load_preprocessing', 'localise',
            'merge_second_pass', 'preprocessing_path_for', 'saccade_target', 'saliency_box',
            'two_pass']

@@ -11,11 +11,17 @@ the object: nothing occludes it).
 Used to measure recognition where the node runs (experiments/foveated_recognition.py
 --tabletop) and to add cluttered views to the CNN's training set (train_classifier.py); the
 node does not import it. Needs mujoco and vizzy_sim_bridge.
+
+`TabletopViews(scene=...)` renders another scene builder the same way (e.g. `visual_search`:
+its cans are objects, their stands are not); `TableView.extents` holds the boxes of every
+object in front of the camera that overlaps the image, centre in view or not (for choosing
+fixations on no object: training.background_views).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -49,6 +55,8 @@ class TableView:
     joints: tuple[float, ...]
     rgb: np.ndarray                     #: (H, W, 3) uint8
     objects: list[TableObject]          #: objects whose centre lies in the image
+    #: (x0, y0, x1, y1) px boxes of every object in front of the camera overlapping the image
+    extents: list[tuple[int, int, int, int]] = field(default_factory=list)
 
 
 def random_joints(rng: np.random.Generator) -> tuple[float, ...]:
@@ -71,12 +79,18 @@ def object_at(objects: list[TableObject], u: float, v: float) -> TableObject | N
 
 
 class TabletopViews:
-    """Renders tabletop(seed) from the left eye; one GL context per scene seed, one per thread."""
+    """Renders tabletop(seed) from the left eye; one GL context per scene seed, one per thread.
 
-    def __init__(self, width: int = 640, height: int = 480) -> None:
+    scene: another scene builder (seed -> vizzy_sim_bridge Scene, e.g. scenes.visual_search);
+    its objects whose kind is one of CLASSES are the objects, the rest is background.
+    """
+
+    def __init__(self, width: int = 640, height: int = 480,
+                 scene: Callable[[int], Any] | None = None) -> None:
         from vizzy_vision.camera import EYE_HFOV_DEG, camera_matrix
 
         self.width, self.height = int(width), int(height)
+        self._scene_builder = scene
         self.k = camera_matrix(self.width, self.height, EYE_HFOV_DEG)
         self._seed: int | None = None
         self._renderer: Any = None
@@ -89,7 +103,7 @@ class TabletopViews:
         from vizzy_sim_bridge.core.scenes import tabletop
         from vizzy_vision.camera import EYE_HFOV_DEG
 
-        scene = tabletop(seed)
+        scene = (self._scene_builder or tabletop)(seed)
         sim = HeadSimulation(scene, eye=CameraSpec(self.width, self.height, EYE_HFOV_DEG))
         if self._renderer is not None:
             self._renderer.close()
@@ -145,22 +159,26 @@ class TabletopViews:
         pos = d.cam_xpos[self._cam].copy()
         rot = d.cam_xmat[self._cam].reshape(3, 3).copy()
         w, h = self.width, self.height
-        objects = []
+        objects, extents = [], []
         for (label, name, geoms), body in zip(self._bodies, self._body_ids, strict=True):
-            (uv,), (z,) = self._project(d.xpos[body][None], pos, rot)
-            if z <= 0.05 or not (0 <= uv[0] < w and 0 <= uv[1] < h):
-                continue
             corners = geom_box_corners(sim.model, d, geoms)
             cuv, cz = self._project(corners, pos, rot)
             cuv = cuv[cz > 0.05]
+            if not len(cuv):
+                continue                                    # wholly behind the camera
             x0, y0 = np.floor(cuv.min(axis=0)).astype(int)
             x1, y1 = np.ceil(cuv.max(axis=0)).astype(int)
             box = (max(int(x0), 0), max(int(y0), 0), min(int(x1), w - 1), min(int(y1), h - 1))
+            if box[0] <= box[2] and box[1] <= box[3]:
+                extents.append(box)
+            (uv,), (z,) = self._project(d.xpos[body][None], pos, rot)
+            if z <= 0.05 or not (0 <= uv[0] < w and 0 <= uv[1] < h):
+                continue
             half = 0.5 * float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
             seen = float(depth[int(uv[1]), int(uv[0])])
             objects.append(TableObject(label, name, box, (float(uv[0]), float(uv[1])), float(z),
                                        bool(seen > z - half - 0.02)))
-        return TableView(seed, tuple(float(j) for j in joints), rgb.copy(), objects)
+        return TableView(seed, tuple(float(j) for j in joints), rgb.copy(), objects, extents)
 
 
 __all__ = ['DEFAULT_JOINTS', 'TableObject', 'TableView', 'TabletopViews', 'object_at',

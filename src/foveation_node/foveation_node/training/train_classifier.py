@@ -4,6 +4,7 @@
         [--epochs 30]
         [--cache /tmp/views.npz] [--tabletop 200 --tabletop-val 40 --tabletop-cache /tmp/tt.npz]
         [--init foveation_node/models/foveation_cnn.pt]
+        [--background --search 150 --search-val 20 --background-share 0.2]
     train_foveation_classifier ...                        # the console entry point
 
 --tabletop N adds cluttered views (training.tabletop_views: N tabletop scenes not used by the
@@ -12,7 +13,22 @@ image foveated (K = 5, f_0 uniform in 60-160 px) at its centre plus a small rand
 labelled with the object under that point (the object the node's pass 2 has its fovea on);
 classes are balanced by sampling, and the single-object and tabletop views are drawn half each.
 --init fine-tunes a model (same architecture; its
-preprocessing is kept) instead of starting from scratch.
+preprocessing is kept) instead of starting from scratch; a model with fewer outputs (the 7-class
+one before the background class) keeps its weights, and the new last-layer rows start at zero.
+
+--background adds the reject class BACKGROUND_LABEL (`background`, the last label): foveated
+views (same K and f_0 range) at fixations on no object (training.background_views: at least
+f_0 from every object's box), from the same tabletop scenes: in each of the object views' head
+poses one fixation anywhere and one near the objects (f_0 to 2 f_0 from a box), and in
+BACKGROUND_AWAY_POSES head poses anywhere within the joint limits (walls, floor, ceiling, up and
+away) BACKGROUND_PER_AWAY fixations each; --search N adds visual_search scenes (textured
+walls and floor; cans on stands, the stands background) from SEARCH_SEED0, SEARCH_POSES poses
+anywhere, BACKGROUND_PER_AWAY fixations each, and in the same poses a view of every unoccluded
+can foveated at it (labelled can: without them the network called the whole room background).
+Held-out: the --tabletop-val scenes and --search-val visual_search scenes from
+SEARCH_VAL_SEED0. The background views are drawn --background-share of the time (the
+object views share the rest as before). Seeds 0-99 of both scenes are never used (an end-to-end
+benchmark evaluates on them).
 
 Renders single-object views (training.object_views: the classes of our scenes, random pose,
 colours, backdrop textures, table, lighting, depth and position in the image) with the left
@@ -35,6 +51,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -44,6 +61,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from foveation_node.core.recognition import BACKGROUND_LABEL
 from vizzy_vision.optional import main_needing_simulator
 
 if TYPE_CHECKING:                   # torch is imported where it is used (slow to import)
@@ -57,6 +75,11 @@ TABLETOP_VAL_SEED0 = 20000
 TABLETOP_POSES = 3
 FIXATION_JITTER_PX = 12.0
 F0_RANGE = (60.0, 160.0)
+BACKGROUND_AWAY_POSES = 2       # per tabletop scene, anywhere within the joint limits
+BACKGROUND_PER_AWAY = 2         # background fixations per pose looking anywhere
+SEARCH_SEED0 = 10000            # visual_search scenes for background views; held-out from:
+SEARCH_VAL_SEED0 = 20000
+SEARCH_POSES = 4
 
 
 def build_network(num_classes: int,
@@ -96,17 +119,48 @@ def render_set(n: int, seed: int, desc: str) -> tuple[np.ndarray, np.ndarray]:
     return images, labels
 
 
-def render_tabletop_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray, np.ndarray]:
-    """Foveated cluttered views (see the module docstring): (n, h, w, 3) uint8 and (n,) labels."""
+class _Foveated:
+    """Foveates a 640x480 render at (u, v) with a random f_0 of F0_RANGE (K = 5) and resizes it
+    to INPUT_SIZE; one Foveator per whole-pixel f_0."""
+
+    def __init__(self) -> None:
+        from foveation_node.core.foveation import Foveator
+
+        self._make = Foveator
+        self._foveators: dict[tuple[int, int, int], Foveator] = {}
+
+    def __call__(self, rgb: np.ndarray, u: float, v: float, rng: np.random.Generator,
+                 f0: int | None = None) -> np.ndarray:
+        """rgb foveated at (u, v), f_0 drawn from rng unless given, resized to INPUT_SIZE."""
+        h, w = rgb.shape[:2]
+        if f0 is None:
+            f0 = int(rng.uniform(*F0_RANGE))
+        key = (w, h, f0)
+        if key not in self._foveators:
+            self._foveators[key] = self._make(w, h, 5, float(f0))
+        img = self._foveators[key].foveate(rgb, (u, v))
+        return cv2.resize(img, INPUT_SIZE, interpolation=cv2.INTER_AREA)
+
+
+def render_tabletop_set(scenes: int, seed0: int, desc: str, background: bool = False
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Foveated cluttered views (see the module docstring): (n, h, w, 3) uint8 and (n,) labels.
+
+    background: also the background views of these scenes (label len(CLASSES)), after the
+    object views; they draw from their own random stream, so the object views are the same
+    with or without them."""
     from tqdm import tqdm
 
-    from foveation_node.core.foveation import Foveator
+    from foveation_node.training.background_views import away_joints
+    from foveation_node.training.object_views import CLASSES
     from foveation_node.training.tabletop_views import TabletopViews, object_at, random_joints
 
     rng = np.random.default_rng(seed0)
+    bg_rng = np.random.default_rng([seed0, 7])
     images: list[np.ndarray] = []
     labels: list[int] = []
-    foveators: dict[int, Foveator] = {}
+    bg_images: list[np.ndarray] = []
+    foveated = _Foveated()
     with TabletopViews() as tv:
         for s in tqdm(range(seed0, seed0 + scenes), desc=desc, unit='scene'):
             for _ in range(TABLETOP_POSES):
@@ -120,15 +174,96 @@ def render_tabletop_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray,
                         continue
                     u = float(np.clip(o.centre[0] + rng.normal(0, FIXATION_JITTER_PX), 0, w - 1))
                     v = float(np.clip(o.centre[1] + rng.normal(0, FIXATION_JITTER_PX), 0, h - 1))
-                    f0 = int(rng.uniform(*F0_RANGE))
-                    if f0 not in foveators:
-                        foveators[f0] = Foveator(w, h, 5, float(f0))
-                    img = foveators[f0].foveate(view.rgb, (u, v))
-                    images.append(cv2.resize(img, INPUT_SIZE, interpolation=cv2.INTER_AREA))
+                    images.append(foveated(view.rgb, u, v, rng))
                     under = object_at(view.objects, u, v)
                     assert under is not None        # o is visible: never None
                     labels.append(under.label)
-    return np.stack(images), np.asarray(labels, np.int64)
+                if background:                      # one anywhere, one near the objects
+                    bg_images += background_views(view, bg_rng, foveated, 1, near=True)
+                    bg_images += background_views(view, bg_rng, foveated, 1)
+            if not background:
+                continue
+            for _ in range(BACKGROUND_AWAY_POSES):
+                try:
+                    view = tv.view(s, away_joints(bg_rng))
+                except RuntimeError:
+                    break
+                bg_images += background_views(view, bg_rng, foveated, BACKGROUND_PER_AWAY)
+    labels += [len(CLASSES)] * len(bg_images)
+    return np.stack(images + bg_images), np.asarray(labels, np.int64)
+
+
+def background_views(view: Any, rng: np.random.Generator, foveated: _Foveated, n: int,
+                     near: bool = False) -> list[np.ndarray]:
+    """Up to n background views of a TableView: f_0 drawn from F0_RANGE, fixations at least
+    margin_for(f_0) from every object box (near: also less than twice that)."""
+    from foveation_node.training.background_views import background_fixations, margin_for
+
+    f0 = int(rng.uniform(*F0_RANGE))
+    margin = margin_for(f0)
+    h, w = view.rgb.shape[:2]
+    fix = background_fixations(view.extents, w, h, rng, n, margin,
+                               2 * margin if near else math.inf)
+    return [foveated(view.rgb, u, v, rng, f0) for u, v in fix]
+
+
+def render_search_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray, np.ndarray]:
+    """Views of visual_search scenes (see the module docstring): the background views, then one
+    view of every unoccluded can in the same poses foveated at its centre (+-12 px, as the
+    tabletop's object views; without them the network learnt "this room is background" and
+    rejected its cans). (n, h, w, 3) uint8 and (n,) labels."""
+    from tqdm import tqdm
+
+    from foveation_node.training.background_views import away_joints
+    from foveation_node.training.object_views import CLASSES
+    from foveation_node.training.tabletop_views import TabletopViews, object_at
+    from vizzy_sim_bridge.core.scenes import visual_search
+
+    rng = np.random.default_rng([seed0, 8])
+    obj_rng = np.random.default_rng([seed0, 9])
+    images: list[np.ndarray] = []
+    objects: list[np.ndarray] = []
+    labels: list[int] = []
+    foveated = _Foveated()
+    with TabletopViews(scene=visual_search) as tv:
+        for s in tqdm(range(seed0, seed0 + scenes), desc=desc, unit='scene'):
+            for _ in range(SEARCH_POSES):
+                view = tv.view(s, away_joints(rng))
+                images += background_views(view, rng, foveated, BACKGROUND_PER_AWAY)
+                h, w = view.rgb.shape[:2]
+                for o in view.objects:
+                    if not o.visible:
+                        continue
+                    u = float(np.clip(o.centre[0] + obj_rng.normal(0, FIXATION_JITTER_PX), 0,
+                                      w - 1))
+                    v = float(np.clip(o.centre[1] + obj_rng.normal(0, FIXATION_JITTER_PX), 0,
+                                      h - 1))
+                    objects.append(foveated(view.rgb, u, v, obj_rng))
+                    under = object_at(view.objects, u, v)
+                    assert under is not None                 # o is visible: never None
+                    labels.append(under.label)
+    all_images = images + objects
+    return (np.stack(all_images) if all_images
+            else np.zeros((0, *INPUT_SIZE[::-1], 3), np.uint8),
+            np.asarray([len(CLASSES)] * len(images) + labels, np.int64))
+
+
+def load_grown(model: torch.nn.Module, state: dict[str, torch.Tensor]) -> None:
+    """Load state (same architecture) into model; a tensor with fewer rows than the model's
+    (the last layer of a model with fewer classes) fills the first rows and the new rows
+    start at zero (a new class begins with score 0 everywhere)."""
+    import torch
+
+    own = model.state_dict()
+    for name, value in state.items():
+        if name in own and own[name].shape != value.shape:
+            if own[name].shape[1:] != value.shape[1:] or value.shape[0] > own[name].shape[0]:
+                raise ValueError(f'{name}: cannot grow {tuple(value.shape)} into '
+                                 f'{tuple(own[name].shape)}')
+            grown = torch.zeros_like(own[name])
+            grown[:value.shape[0]] = value
+            state = {**state, name: grown}
+    model.load_state_dict(state)
 
 
 def _main(argv: list[str] | None = None) -> int:
@@ -150,7 +285,24 @@ def _main(argv: list[str] | None = None) -> int:
                         help='.npz of the tabletop views: loaded if it exists, else written')
     parser.add_argument('--init', type=Path, default=None,
                         help='TorchScript model to fine-tune (its .json preprocessing is kept)')
+    parser.add_argument('--init-note', default=None,
+                        help='what --init is, for the report (default: its file name)')
+    parser.add_argument('--background', action='store_true',
+                        help=f'add the reject class {BACKGROUND_LABEL!r}: views on no object of '
+                             'the --tabletop scenes (and of --search scenes)')
+    parser.add_argument('--search', type=int, default=0,
+                        help='visual_search scenes whose background views join the training set')
+    parser.add_argument('--search-val', type=int, default=0,
+                        help='held-out visual_search scenes (background views)')
+    parser.add_argument('--search-cache', type=Path, default=None,
+                        help='.npz of the visual_search background views (as --tabletop-cache)')
+    parser.add_argument('--background-share', type=float, default=0.2,
+                        help='fraction of the draws that are background views')
     args = parser.parse_args(argv)
+    if args.background and args.tabletop <= 0 and args.tabletop_cache is None:
+        parser.error('--background needs --tabletop scenes (or a --tabletop-cache)')
+    if not 0.0 < args.background_share < 1.0:
+        parser.error('--background-share must be in (0, 1)')
 
     import torch
     from torch import nn
@@ -158,6 +310,8 @@ def _main(argv: list[str] | None = None) -> int:
 
     from foveation_node.training.object_views import CLASSES
 
+    labels_out = (*CLASSES, BACKGROUND_LABEL) if args.background else CLASSES
+    background = len(CLASSES)                     # the background class's index (if any)
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     t0 = time.perf_counter()
@@ -181,13 +335,48 @@ def _main(argv: list[str] | None = None) -> int:
                                             for k in ('x_train', 'y_train', 'x_val', 'y_val'))
         print(f'loaded {len(t_train)} + {len(t_val)} tabletop views from {args.tabletop_cache}')
     elif args.tabletop > 0:
-        t_train, ty_train = render_tabletop_set(args.tabletop, TABLETOP_SEED0, 'tabletop train')
+        t_train, ty_train = render_tabletop_set(args.tabletop, TABLETOP_SEED0, 'tabletop train',
+                                                args.background)
         if args.tabletop_val > 0:
             t_val, ty_val = render_tabletop_set(args.tabletop_val, TABLETOP_VAL_SEED0,
-                                                'tabletop held-out')
+                                                'tabletop held-out', args.background)
         if args.tabletop_cache is not None:
             np.savez(args.tabletop_cache, x_train=t_train, y_train=ty_train, x_val=t_val,
                      y_val=ty_val)
+    if args.background and not (ty_train == background).any():
+        raise SystemExit(f'{args.tabletop_cache} holds no background views: render it anew '
+                         'with --background (another --tabletop-cache path)')
+    if not args.background:                        # a cache with background, used without it
+        t_train, ty_train = t_train[ty_train != background], ty_train[ty_train != background]
+        t_val, ty_val = t_val[ty_val != background], ty_val[ty_val != background]
+    s_train = s_val = np.zeros((0, *INPUT_SIZE[::-1], 3), np.uint8)
+    sy_train = sy_val = np.zeros(0, np.int64)
+    if args.background and args.search_cache is not None and args.search_cache.exists():
+        data = np.load(args.search_cache)
+        s_train, sy_train, s_val, sy_val = (data[k]
+                                            for k in ('x_train', 'y_train', 'x_val', 'y_val'))
+        print(f'loaded {len(s_train)} + {len(s_val)} visual_search background views from '
+              f'{args.search_cache}')
+    elif args.background and (args.search > 0 or args.search_val > 0):
+        if args.search > 0:
+            s_train, sy_train = render_search_set(args.search, SEARCH_SEED0, 'search train')
+        if args.search_val > 0:
+            s_val, sy_val = render_search_set(args.search_val, SEARCH_VAL_SEED0,
+                                              'search held-out')
+        if args.search_cache is not None:
+            np.savez(args.search_cache, x_train=s_train, y_train=sy_train, x_val=s_val,
+                     y_val=sy_val)
+    tabletop_objects_train = int((ty_train != background).sum())
+    tabletop_objects_val = int((ty_val != background).sum())
+    n_table_val = len(t_val)                      # held-out: tabletop views, then search views
+    bg_counts = {'tabletop_train': int((ty_train == background).sum()),
+                 'tabletop_held_out': int((ty_val == background).sum()),
+                 'search_train': int((sy_train == background).sum()),
+                 'search_held_out': int((sy_val == background).sum())}
+    search_objects = {'train': int((sy_train != background).sum()),
+                      'held_out': int((sy_val != background).sum())}
+    t_train, ty_train = np.concatenate([t_train, s_train]), np.concatenate([ty_train, sy_train])
+    t_val, ty_val = np.concatenate([t_val, s_val]), np.concatenate([ty_val, sy_val])
     if len(t_train):
         x_train = np.concatenate([x_train, t_train])
         y_train = np.concatenate([y_train, ty_train])
@@ -207,44 +396,76 @@ def _main(argv: list[str] | None = None) -> int:
     def to_input(batch: np.ndarray) -> torch.Tensor:
         return torch.from_numpy(batch).permute(0, 3, 1, 2).float() * scale + shift
 
-    model = build_network(len(CLASSES))
+    model = build_network(len(labels_out))
     if args.init is not None:
         import warnings
         with warnings.catch_warnings():       # torch >= 2.9 deprecates TorchScript
             warnings.simplefilter('ignore', DeprecationWarning)
-            model.load_state_dict(torch.jit.load(str(args.init), map_location='cpu').state_dict())
+            state = torch.jit.load(str(args.init), map_location='cpu').state_dict()
+        load_grown(model, state)
     # sampling weights: every class equally likely within each source (the tabletop has more
-    # cans than handles), and the single-object and tabletop views half of the draws each so
-    # that the cluttered views do not crowd out the single-object ones
+    # cans than handles), and the single-object and tabletop views half of the object draws
+    # each so that the cluttered views do not crowd out the single-object ones; background
+    # views (if any) args.background_share of all draws
     source = np.arange(args.train) >= single_train
+    is_bg = y_train == background if args.background else np.zeros(args.train, bool)
     weights = np.zeros(args.train)
-    for sel in (~source, source):
+    for sel in (~source, source & ~is_bg):
         if sel.any():
-            counts = np.bincount(y_train[sel], minlength=len(CLASSES)).astype(float)
+            counts = np.bincount(y_train[sel], minlength=len(labels_out)).astype(float)
             weights[sel] = 1.0 / counts[y_train[sel]]
             weights[sel] /= weights[sel].sum()
+    if is_bg.any():
+        weights /= weights.sum()
+        weights *= 1.0 - args.background_share
+        weights[is_bg] = args.background_share / is_bg.sum()
     weights /= weights.sum()
     steps = args.epochs * ((args.train + args.batch - 1) // args.batch)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps)
     rng = np.random.default_rng(args.seed)
 
-    def evaluate(xs: np.ndarray = x_val, ys: np.ndarray = y_val) -> tuple[float, np.ndarray]:
+    def evaluate(xs: np.ndarray) -> np.ndarray:
+        """(N, C) class probabilities of uint8 views."""
         model.eval()
-        pred = []
+        out = [np.zeros((0, len(labels_out)), np.float32)]
         with torch.inference_mode():
             for i in range(0, len(xs), 128):
-                pred.append(model(to_input(xs[i:i + 128])).argmax(1).numpy())
+                out.append(torch.softmax(model(to_input(xs[i:i + 128])), 1).numpy())
         model.train()
-        p = np.concatenate(pred) if pred else np.zeros(0, int)
-        confusion = np.zeros((len(CLASSES), len(CLASSES)), int)
-        np.add.at(confusion, (ys, p), 1)
-        return float((p == ys).mean()) if len(ys) else float('nan'), confusion
+        return np.concatenate(out)
+
+    def scores(probs: np.ndarray, ys: np.ndarray) -> dict[str, Any]:
+        """Top-1 accuracy and background-rejection rate of the object views, the background
+        views' recall and how often an object class still scores >= 0.3 there; confusion."""
+        pred = probs.argmax(1) if len(probs) else np.zeros(0, int)
+        obj = ys != background if args.background else np.ones(len(ys), bool)
+        confusion = np.zeros((len(labels_out), len(labels_out)), int)
+        np.add.at(confusion, (ys, pred), 1)
+        mean = lambda a: round(float(a.mean()), 4) if len(a) else float('nan')  # noqa: E731
+        out: dict[str, Any] = {'accuracy': mean(pred[obj] == ys[obj]), 'confusion': confusion}
+        if args.background:
+            objects = probs[:, :len(CLASSES)]
+            out['rejected'] = mean(pred[obj] == background)
+            out['background_recall'] = mean(pred[~obj] == background)
+            out['background_object_at_0.3'] = mean(objects[~obj].max(axis=1) >= 0.3)
+        return out
+
+    def line(name: str, sc: dict[str, Any]) -> str:
+        text = f'{name} top-1 {sc["accuracy"]:.3f}'
+        if args.background:
+            text += f' (rejected {sc["rejected"]:.3f})'
+            if not np.isnan(sc['background_recall']):
+                text += (f', background recall {sc["background_recall"]:.3f}, object >= 0.3 '
+                         f'on background {sc["background_object_at_0.3"]:.3f}')
+        return text
 
     if args.init is not None:
-        acc0, _ = evaluate()
-        tacc0, _ = evaluate(t_val, ty_val)
-        print(f'initial model: held-out top-1 {acc0:.3f}, tabletop held-out top-1 {tacc0:.3f}')
+        probs = evaluate(t_val)
+        print('initial model: ' + line('held-out', scores(evaluate(x_val), y_val)) + '; '
+              + line('tabletop held-out', scores(probs[:n_table_val], ty_val[:n_table_val]))
+              + '; ' + line('search held-out', scores(probs[n_table_val:],
+                                                      ty_val[n_table_val:])), flush=True)
 
     t1 = time.perf_counter()
     model.train()
@@ -275,28 +496,35 @@ def _main(argv: list[str] | None = None) -> int:
             loss_sum += float(loss) * len(idx)
             bar.set_postfix(loss=f'{loss_sum / total:.3f}', acc=f'{correct / total:.3f}')
         if (epoch + 1) % 5 == 0 or epoch + 1 == args.epochs:
-            acc, _ = evaluate()
-            tacc, _ = evaluate(t_val, ty_val)
-            print(f'epoch {epoch + 1}: held-out top-1 accuracy {acc:.3f}, tabletop held-out '
-                  f'{tacc:.3f}', flush=True)
+            probs = evaluate(t_val)
+            print(f'epoch {epoch + 1}: ' + line('held-out', scores(evaluate(x_val), y_val))
+                  + '; ' + line('tabletop held-out', scores(probs[:n_table_val],
+                                                            ty_val[:n_table_val]))
+                  + '; ' + line('search held-out', scores(probs[n_table_val:],
+                                                          ty_val[n_table_val:])), flush=True)
     train_s = time.perf_counter() - t1
-    accuracy, confusion = evaluate()
-    t_accuracy, t_confusion = evaluate(t_val, ty_val)
+    single = scores(evaluate(x_val), y_val)
+    t_probs = evaluate(t_val)
+    every = scores(t_probs, ty_val)                           # tabletop and search views
+    table = scores(t_probs[:n_table_val], ty_val[:n_table_val])
+    search = scores(t_probs[n_table_val:], ty_val[n_table_val:])
+    accuracy, confusion = single['accuracy'], single['confusion']
 
     model.eval()
     scripted = torch.jit.script(model)
     args.out.mkdir(parents=True, exist_ok=True)
     model_path = args.out / f'{MODEL_NAME}.pt'
     scripted.save(str(model_path))
-    (args.out / f'{MODEL_NAME}.labels').write_text('\n'.join(CLASSES) + '\n', encoding='utf-8')
+    (args.out / f'{MODEL_NAME}.labels').write_text('\n'.join(labels_out) + '\n',
+                                                   encoding='utf-8')
     report: dict[str, Any] = {
         'input_size': list(INPUT_SIZE), 'mean': [round(float(v), 5) for v in mean],
         'std': [round(float(v), 5) for v in std],
         'training': {
-            'classes': list(CLASSES), 'train_views': args.train, 'held_out_views': args.val,
+            'classes': list(labels_out), 'train_views': args.train, 'held_out_views': args.val,
             'epochs': args.epochs, 'batch': args.batch, 'lr': args.lr, 'seed': args.seed,
             'parameters': sum(p.numel() for p in model.parameters()),
-            'held_out_top1_accuracy': round(accuracy, 4),
+            'held_out_top1_accuracy': accuracy,
             'chance': round(1.0 / len(CLASSES), 4),
             'confusion_rows_true_cols_predicted': confusion.tolist(),
             'render_s': round(render_s, 1), 'views_from_cache': from_cache,
@@ -306,20 +534,53 @@ def _main(argv: list[str] | None = None) -> int:
                       '(training.object_views)',
         },
     }
+    if args.background:
+        report['training']['held_out_rejected_as_background'] = single['rejected']
     if args.init is not None:
-        report['training']['fine_tuned_from'] = f'{args.init.name} (as packaged before)'
+        report['training']['fine_tuned_from'] = args.init_note or args.init.name
     if len(t_train):
         report['training'].update({
             'single_object_train_views': single_train,
-            'tabletop_train_views': len(t_train), 'tabletop_held_out_views': len(t_val),
+            'tabletop_train_views': tabletop_objects_train,
+            'tabletop_held_out_views': tabletop_objects_val,
             'tabletop_scenes': [args.tabletop, args.tabletop_val],
             'tabletop_seeds': [TABLETOP_SEED0, TABLETOP_VAL_SEED0],
             'tabletop_poses_per_scene': TABLETOP_POSES,
             'tabletop_images': 'left-eye tabletop renders foveated (K 5, f0 60-160 px) at an '
                                'unoccluded object (+-12 px), labelled with the object there',
-            'tabletop_held_out_top1_accuracy': round(t_accuracy, 4),
-            'tabletop_confusion_rows_true_cols_predicted': t_confusion.tolist(),
+            'tabletop_held_out_top1_accuracy': table['accuracy'],
+            'tabletop_confusion_rows_true_cols_predicted': table['confusion'].tolist(),
             'sampling': 'class-balanced; single-object and tabletop views half each'})
+    if args.background:
+        from foveation_node.training.background_views import MARGIN_PX
+
+        report['training'].update({
+            'tabletop_held_out_rejected_as_background': table['rejected'],
+            'tabletop_confusion_rows_true_cols_predicted_includes': 'background views (last row)',
+            'background': {
+                'label': BACKGROUND_LABEL, 'index': background,
+                'views': bg_counts,
+                'images': 'left-eye renders foveated (K 5, f0 60-160 px) at a fixation at least '
+                          f'f0 (>= {MARGIN_PX:g} px) from every object box: tabletop scenes (the '
+                          'object views\' poses: one fixation anywhere, one f0-2 f0 from a box; '
+                          f'{BACKGROUND_AWAY_POSES} '
+                          f'poses anywhere within the joint limits, {BACKGROUND_PER_AWAY} '
+                          f'fixations each) and visual_search scenes ({SEARCH_POSES} poses '
+                          f'anywhere, {BACKGROUND_PER_AWAY} fixations each; in the same poses '
+                          'every unoccluded can, foveated at it (+-12 px), is a can view)',
+                'search_scenes': [args.search, args.search_val],
+                'search_seeds': [SEARCH_SEED0, SEARCH_VAL_SEED0],
+                'margin': f'f0, at least {MARGIN_PX:g} px',
+                'share_of_draws': args.background_share,
+                'held_out_recall': every['background_recall'],
+                'held_out_object_score_at_least_0.3': every['background_object_at_0.3'],
+                'held_out_recall_tabletop': table['background_recall'],
+                'held_out_recall_search': search['background_recall']},
+            'search_can_views': search_objects,
+            'search_held_out_can_top1_accuracy': search['accuracy'],
+            'search_held_out_can_rejected_as_background': search['rejected'],
+            'sampling': f'class-balanced; background views {args.background_share:g} of the '
+                        'draws, single-object and tabletop object views half each of the rest'})
     (args.out / f'{MODEL_NAME}.json').write_text(json.dumps(report, indent=1) + '\n',
                                                  encoding='utf-8')
     print(f'held-out top-1 accuracy {accuracy:.3f} on {args.val} views (chance '
@@ -327,7 +588,10 @@ def _main(argv: list[str] | None = None) -> int:
               f'{c} {confusion[i, i] / max(confusion[i].sum(), 1):.2f}'
               for i, c in enumerate(CLASSES)))
     if len(t_val):
-        print(f'tabletop held-out top-1 accuracy {t_accuracy:.3f} on {len(t_val)} foveated views')
+        print(line(f'tabletop held-out ({n_table_val} foveated views)', table))
+    if len(t_val) > n_table_val:
+        print(line(f'visual_search held-out ({len(t_val) - n_table_val} foveated views)',
+                   search))
     print(f'wrote {model_path} ({os.path.getsize(model_path) / 1024:.0f} KiB), labels and '
           f'{MODEL_NAME}.json; render {render_s:.0f} s, train {train_s:.0f} s')
     return 0
