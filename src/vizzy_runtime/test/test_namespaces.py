@@ -63,8 +63,9 @@ DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {
                          ('pub', '/mot/overlay'), ('pub', '/gaze/command')},
     'object_map': TF | {('sub', '/foveation/detections'), ('sub', '/vizzy/left/camera_info'),
                         ('sub', '/cylinders/clusters'), ('sub', '/cylinders'),
-                        ('sub', '/stereo/points'), ('pub', '/objects'),
-                        ('pub', '/objects/markers'), ('pub', '/objects/map')},
+                        ('sub', '/stereo/points'), ('sub', '/gaze/state'), ('pub', '/objects'),
+                        ('pub', '/objects/markers'), ('pub', '/objects/map'),
+                        ('pub', '/gaze/command')},
 }
 SMALL_SIM = {'width': 160, 'height': 120, 'rgbd_width': 64, 'rgbd_height': 48, 'rate_hz': 10.0,
              'rgbd_rate_hz': 1.0}
