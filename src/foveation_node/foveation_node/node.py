@@ -96,6 +96,7 @@ from foveation_node.core.recognition import (
     Detection,
     ModelError,
     TwoPassResult,
+    grid_recognition,
     saccade_target,
     two_pass,
 )
@@ -179,8 +180,12 @@ PARAMETERS: tuple[Param, ...] = (
           constraints='finite'),
     Param('space_variant', True,
           'Foveate (thesis chapter 2). False: the uniform-resolution baseline: the published '
-          'image and both recognition passes use the unfoveated frame (bench/active_perception.py'
-          '\'s uniform configuration).'),
+          'image and recognition use the unfoveated frame (a window model: every window of a '
+          'grid over it, see uniform_stride_px; bench/active_perception.py\'s uniform '
+          'configuration).'),
+    Param('uniform_stride_px', 40,
+          'With space_variant false and a window model: the stride [px] of the grid of windows '
+          'recognised over the whole frame (the uniform baseline), in [8, 1024].', '[8, 1024]'),
     Param('follow_gaze', False,
           f'Fixate the principal point of {CAMERA_INFO_TOPIC} (where the gaze fixation point of '
           f'{GAZE_STATE_TOPIC} projects) instead of fixation_u/v.'),
@@ -535,8 +540,13 @@ class FoveationNode(Node):
             self._warn_throttled('recognition', f'recognition skipped: {exc}')
             return None
         foveate = foveator.foveate if self._p['space_variant'] else _unfoveated
-        result = two_pass(classifier, rgb, fixation, foveate, self._p['top_k'],
-                          self._p['saliency_threshold'])
+        if not self._p['space_variant'] and classifier.window:
+            # uniform resolution everywhere: the window model on a grid over the whole frame
+            found, _ = grid_recognition(classifier, rgb, int(self._p['uniform_stride_px']))
+            result = TwoPassResult(found, [], np.zeros(classifier.num_classes))
+        else:
+            result = two_pass(classifier, rgb, fixation, foveate, self._p['top_k'],
+                              self._p['saliency_threshold'])
         self.last_recognition_ms = 1000.0 * (time.perf_counter() - t0)
         for detections in (result.first, result.second):
             publish_from_thread(self, self._det_pub,

@@ -64,9 +64,9 @@ def test_on_background_two_pass_reports_nothing_and_sends_no_saccade(reject_mode
     foveator = Foveator(W, H, 5, 100.0)
     result = two_pass(reject_model, _wall(), CENTRE, foveator.foveate, top_k=5)
     assert int(np.argmax(result.probs_first)) == reject_model.reject_class   # it says "wall"
-    # pass 1 still localises the object classes (the candidates pass 2 looks at), never
-    # background; top_k 5 is cut to the 2 object classes
-    assert sorted(d.label for d in result.first) == ['green', 'red']
+    # pass 1 still localises the object classes (the candidates pass 2 looks at: two rows of
+    # pass 2; top_k 5 is cut to the 2 object classes) but reports none: neither beats the wall
+    assert result.first == []
     assert result.probs_second.shape == (2, 3)
     assert result.second == []                                # every row: background best
     assert saccade_target(result.second, CENTRE, 0.0, 0.0) is None

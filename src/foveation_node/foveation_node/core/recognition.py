@@ -19,7 +19,15 @@ Fig. 2.5).
   are the candidates pass 2 looks at, even when the initial fixation is on background), and a
   pass-2 label counts only where its probability exceeds background's on the image it was seen
   in (a row whose best class is background gives nothing), so pass 2 may return no detection.
-  A model without the label behaves as before.
+  A model without the label behaves as before. Pass 1 reports only the classes that beat
+  background at its fixation (it still localises the top-k for pass 2 to look at).
+- Window models: a preprocessing JSON with `"window": W` (px) makes the network see the W x W
+  square of the (foveated) image centred at each pass's fixation (reflect-padded at the image's
+  border), resized to its input, instead of the whole image: the classifier looks at what the
+  fovea holds, at the fovea's resolution (a 6 cm can at 0.8 m is 29 px wide: shrunk with a
+  640 x 480 frame to 227 px it would be 10). Saliency boxes map back from that square.
+  `grid_recognition` is the uniform-resolution counterpart: every window of a grid over the
+  whole unfoveated frame.
 
 ROS-free: numpy, OpenCV and torch only.
 """
@@ -54,16 +62,45 @@ class ModelError(ValueError):
 
 @dataclass(frozen=True)
 class Preprocessing:
-    """How an RGB uint8 image becomes the network's input: resized to input_size (w, h),
-    scaled to [0, 1], then (x - mean) / std per channel."""
+    """How an RGB uint8 image becomes the network's input: the window x window square around
+    the fixation (window > 0; 0: the whole image), resized to input_size (w, h), scaled to
+    [0, 1], then (x - mean) / std per channel."""
 
     input_size: tuple[int, int] = DEFAULT_INPUT_SIZE
     mean: tuple[float, float, float] = IMAGENET_MEAN
     std: tuple[float, float, float] = IMAGENET_STD
+    window: int = 0
 
-    def as_dict(self) -> dict[str, list[float] | list[int]]:
-        return {'input_size': list(self.input_size), 'mean': list(self.mean),
-                'std': list(self.std)}
+    def as_dict(self) -> dict[str, list[float] | list[int] | int]:
+        out: dict[str, list[float] | list[int] | int] = {
+            'input_size': list(self.input_size), 'mean': list(self.mean), 'std': list(self.std)}
+        if self.window:
+            out['window'] = self.window
+        return out
+
+
+def window_origin(centre: tuple[float, float], window: int) -> tuple[int, int]:
+    """Top-left pixel (x, y) of the window x window square centred at centre (image px)."""
+    return (int(round(centre[0])) - window // 2, int(round(centre[1])) - window // 2)
+
+
+def crop_window(image: np.ndarray, centre: tuple[float, float], window: int) -> np.ndarray:
+    """The window x window square of image centred at centre (x, y) [px], the part outside
+    the image mirrored in (cv2's BORDER_REFLECT_101), as a new array."""
+    h, w = image.shape[:2]
+    x0, y0 = window_origin(centre, window)
+    x1, y1 = x0 + window, y0 + window
+    cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+    if cx0 >= cx1 or cy0 >= cy1:
+        raise ValueError(f'window centre {centre} lies {window // 2} px or more outside the '
+                         f'{w}x{h} image')
+    part = image[cy0:cy1, cx0:cx1]
+    pads = (cy0 - y0, y1 - cy1, cx0 - x0, x1 - cx1)
+    if not any(pads):
+        return part.copy()
+    if max(pads[0], pads[1]) >= h or max(pads[2], pads[3]) >= w:   # mirror needs the room
+        return cv2.copyMakeBorder(part, *pads, cv2.BORDER_REPLICATE)
+    return cv2.copyMakeBorder(part, *pads, cv2.BORDER_REFLECT_101)
 
 
 def preprocessing_path_for(model_path: str | Path) -> Path:
@@ -93,12 +130,16 @@ def load_preprocessing(path: str | Path | None) -> Preprocessing:
         size = tuple(int(v) for v in raw.get('input_size', DEFAULT_INPUT_SIZE))
         mean = tuple(float(v) for v in raw.get('mean', IMAGENET_MEAN))
         std = tuple(float(v) for v in raw.get('std', IMAGENET_STD))
+        window = int(raw.get('window', 0))
     except (OSError, ValueError, TypeError, AttributeError) as exc:
         raise ModelError(f'cannot read preprocessing file {path}: {exc}') from exc
     if len(size) != 2 or min(size) < 8 or len(mean) != 3 or len(std) != 3 or min(std) <= 0:
         raise ModelError(f'preprocessing file {path}: need input_size [w >= 8, h >= 8], 3 means '
                          f'and 3 positive stds, got {raw}')
-    return Preprocessing(size, mean, std)
+    if window < 0 or 0 < window < 8:
+        raise ModelError(f'preprocessing file {path}: window must be 0 (the whole image) or at '
+                         f'least 8 px, got {window}')
+    return Preprocessing(size, mean, std, window)
 
 
 @dataclass(frozen=True)
@@ -123,9 +164,11 @@ class Detection:
 
 @dataclass
 class TwoPassResult:
-    """first: pass 1's top-k (boxes from its saliency); second: the best non-repeated labels of
+    """first: pass 1's top-k (boxes from its saliency; with a reject class only those whose
+    probability beats background's at the fixation); second: the best non-repeated labels of
     pass 2 (boxes from the saliency of each label on the image it was found in);
-    probs_first: pass 1's class probabilities; probs_second: (k, C), one row per box centre."""
+    probs_first: pass 1's class probabilities; probs_second: (k, C), one row per box centre
+    (pass 1's top-k boxes, reported or not)."""
 
     first: list[Detection]
     second: list[Detection]
@@ -187,11 +230,32 @@ class Classifier:
 
     # ----------------------------------------------------------------------------------------
 
-    def preprocess(self, images: np.ndarray | Sequence[np.ndarray]) -> torch.Tensor:
+    @property
+    def window(self) -> int:
+        """Side [px] of the square around the fixation the network sees; 0: the whole image."""
+        return self.preprocessing.window
+
+    def preprocess(self, images: np.ndarray | Sequence[np.ndarray],
+                   centres: Sequence[tuple[float, float]] | None = None) -> torch.Tensor:
         """(N, 3, h, w) float32 network input of RGB uint8 images (one (H, W, 3) or a list);
-        each is resized to the input size (cv2.INTER_AREA when shrinking)."""
+        each is resized to the input size (cv2.INTER_AREA when shrinking). A window model takes
+        the window around centres[i] of image i (one image and several centres: that image's
+        windows; no centres: the images' centres)."""
         if isinstance(images, np.ndarray) and images.ndim == 3:
             images = [images]
+        images = list(images)
+        if self.window:
+            if centres is None:
+                centres = [((img.shape[1] - 1) / 2.0, (img.shape[0] - 1) / 2.0) for img in images]
+            if len(images) == 1 and len(centres) > 1:
+                images = images * len(centres)
+            if len(centres) != len(images):
+                raise ValueError(f'{len(centres)} window centres for {len(images)} images')
+            for img in images:
+                if img.ndim != 3 or img.shape[2] != 3:
+                    raise ValueError(f'expected an (H, W, 3) RGB image, got shape {img.shape}')
+            images = [crop_window(img, c, self.window)
+                      for img, c in zip(images, centres, strict=True)]
         w, h = self.preprocessing.input_size
         batch = np.empty((len(images), h, w, 3), np.uint8)
         for i, img in enumerate(images):
@@ -206,23 +270,27 @@ class Classifier:
     def logits(self, x: torch.Tensor) -> torch.Tensor:
         return self.model(x)
 
-    def classify(self, images: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
-        """(N, C) class probabilities (softmax of the scores) of RGB uint8 images."""
+    def classify(self, images: np.ndarray | Sequence[np.ndarray],
+                 centres: Sequence[tuple[float, float]] | None = None) -> np.ndarray:
+        """(N, C) class probabilities (softmax of the scores) of RGB uint8 images (a window
+        model: of their windows at centres, see preprocess)."""
         with torch.inference_mode():
-            return torch.softmax(self.model(self.preprocess(images)), dim=1).numpy()
+            return torch.softmax(self.model(self.preprocess(images, centres)), dim=1).numpy()
 
     def saliency(self, images: np.ndarray | Sequence[np.ndarray],
-                 classes: Sequence[int]) -> np.ndarray:
+                 classes: Sequence[int],
+                 centres: Sequence[tuple[float, float]] | None = None) -> np.ndarray:
         """(N, h, w) class saliency maps (Eqs. 2.19-2.20) in network-input pixels, in [0, 1].
 
         Map i is |d S_c / d I| of class classes[i] on image i (one image: the same image for
         every class), max over colour channels, divided by its maximum. One batched backward
         pass: the sum of the chosen scores, each depending on its own copy of the input only.
         """
-        if isinstance(images, np.ndarray) and images.ndim == 3:
-            x = self.preprocess(images).expand(len(classes), -1, -1, -1).clone()
+        if isinstance(images, np.ndarray) and images.ndim == 3 and (
+                centres is None or len(centres) == 1):
+            x = self.preprocess(images, centres).expand(len(classes), -1, -1, -1).clone()
         else:
-            x = self.preprocess(images)
+            x = self.preprocess(images, centres)
         if x.shape[0] != len(classes):
             raise ValueError(f'{x.shape[0]} images for {len(classes)} classes')
         x.requires_grad_(True)
@@ -235,14 +303,24 @@ class Classifier:
         peak = grad.flatten(1).amax(dim=1).clamp_min(1e-12)
         return (grad / peak[:, None, None]).numpy()
 
-    def box_to_image(self, box: Box, width: int, height: int) -> Box:
-        """A box in network-input pixels as a box in a width x height image's pixels."""
+    def box_to_image(self, box: Box, width: int, height: int,
+                     centre: tuple[float, float] | None = None) -> Box:
+        """A box in network-input pixels as a box in a width x height image's pixels (a window
+        model: in the window at centre, default the image's centre), clipped to the image."""
         w, h = self.preprocessing.input_size
-        sx, sy = width / w, height / h
+        ox, oy = 0, 0
+        if self.window:
+            if centre is None:
+                centre = ((width - 1) / 2.0, (height - 1) / 2.0)
+            ox, oy = window_origin(centre, self.window)
+            sx, sy = self.window / w, self.window / h
+        else:
+            sx, sy = width / w, height / h
         x0, y0, x1, y1 = box
-        return (int(math.floor(x0 * sx)), int(math.floor(y0 * sy)),
-                min(int(math.ceil((x1 + 1) * sx)) - 1, width - 1),
-                min(int(math.ceil((y1 + 1) * sy)) - 1, height - 1))
+        return (min(max(ox + int(math.floor(x0 * sx)), 0), width - 1),
+                min(max(oy + int(math.floor(y0 * sy)), 0), height - 1),
+                min(max(ox + int(math.ceil((x1 + 1) * sx)) - 1, 0), width - 1),
+                min(max(oy + int(math.ceil((y1 + 1) * sy)) - 1, 0), height - 1))
 
 
 def saliency_box(saliency: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> Box:
@@ -259,12 +337,18 @@ def saliency_box(saliency: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> 
 
 def localise(classifier: Classifier, image: np.ndarray, classes: Sequence[int],
              threshold: float = DEFAULT_THRESHOLD,
-             net_input: np.ndarray | Sequence[np.ndarray] | None = None) -> list[Box]:
+             net_input: np.ndarray | Sequence[np.ndarray] | None = None,
+             centres: Sequence[tuple[float, float]] | None = None) -> list[Box]:
     """Saliency boxes (image px) of classes on image (or on the images of net_input, one per
-    class, all of image's size)."""
-    maps = classifier.saliency(image if net_input is None else net_input, classes)
+    class, all of image's size); a window model: in the windows at centres (one per class, or
+    one for all)."""
+    maps = classifier.saliency(image if net_input is None else net_input, classes, centres)
     h, w = image.shape[:2]
-    return [classifier.box_to_image(saliency_box(m, threshold), w, h) for m in maps]
+    per = list(centres) if centres is not None else [None]
+    if len(per) == 1:
+        per = per * len(maps)
+    return [classifier.box_to_image(saliency_box(m, threshold), w, h, c)
+            for m, c in zip(maps, per, strict=True)]
 
 
 def merge_second_pass(probs: np.ndarray, top_k: int,
@@ -316,26 +400,69 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     k = min(int(top_k), classifier.num_classes - (reject is not None))
     fixation = (float(fixation[0]), float(fixation[1]))
     first_image = foveate(image, fixation)
-    probs1 = classifier.classify(first_image)[0]
+    probs1 = classifier.classify(first_image, [fixation])[0]
     classes1 = [int(c) for c in np.argsort(-probs1) if c != reject][:k]   # never background
     if not classes1:                                # a model that knows background only
         return TwoPassResult([], [], probs1, np.zeros((0, classifier.num_classes)))
-    boxes1 = localise(classifier, first_image, classes1, threshold)
-    first = [Detection(c, classifier.labels[c], float(probs1[c]), b, fixation, 0)
-             for c, b in zip(classes1, boxes1, strict=True)]
+    boxes1 = localise(classifier, first_image, classes1, threshold, centres=[fixation])
+    looked = [Detection(c, classifier.labels[c], float(probs1[c]), b, fixation, 0)
+              for c, b in zip(classes1, boxes1, strict=True)]
+    # pass 2 looks at every top-k box; pass 1 reports only what beats background where it looked
+    first = (looked if reject is None
+             else [d for d in looked if probs1[d.class_id] > probs1[reject]])
 
-    centres = [d.centre for d in first]
+    centres = [d.centre for d in looked]
     second_images = [foveate(image, c) for c in centres]
-    probs2 = classifier.classify(second_images)
+    probs2 = classifier.classify(second_images, centres)
     chosen = merge_second_pass(probs2, k, reject)
     if localise_second and chosen:
         boxes2 = localise(classifier, image, [c for c, _, _ in chosen], threshold,
-                          net_input=[second_images[r] for _, r, _ in chosen])
+                          net_input=[second_images[r] for _, r, _ in chosen],
+                          centres=[centres[r] for _, r, _ in chosen])
     else:
-        boxes2 = [first[r].box for _, r, _ in chosen]
+        boxes2 = [looked[r].box for _, r, _ in chosen]
     second = [Detection(c, classifier.labels[c], s, b, centres[r], 1, row=r)
               for (c, r, s), b in zip(chosen, boxes2, strict=True)]
     return TwoPassResult(first, second, probs1, probs2)
+
+
+def grid_centres(width: int, height: int, stride: int) -> list[tuple[float, float]]:
+    """Centres [px] of a grid with the given stride over a width x height image, every pixel
+    within stride / 2 (in x and in y) of one."""
+    xs = np.arange(stride / 2.0 - 0.5, width, stride)
+    ys = np.arange(stride / 2.0 - 0.5, height, stride)
+    return [(float(x), float(y)) for y in ys for x in xs]
+
+
+def grid_recognition(classifier: Classifier, image: np.ndarray, stride: int,
+                     batch: int = 64) -> tuple[list[Detection], np.ndarray]:
+    """Recognition at uniform resolution everywhere: a window model classifies the window at
+    every centre of grid_centres(stride) of the (unfoveated) image, in batches. Each window
+    whose best object class beats background (any best class, without a reject class) is a
+    Detection of pass 0 at that centre, its box the window clipped to the image. Returns the
+    detections and the (N, C) probabilities of every window."""
+    if not classifier.window:
+        raise ValueError('grid recognition needs a window model (preprocessing "window")')
+    if stride < 1:
+        raise ValueError(f'stride must be at least 1 px, got {stride}')
+    h, w = image.shape[:2]
+    centres = grid_centres(w, h, stride)
+    probs = np.concatenate([classifier.classify(image, centres[i:i + batch])
+                            for i in range(0, len(centres), batch)])
+    reject = classifier.reject_class
+    objects = classifier.object_classes
+    best = np.asarray(objects)[np.argmax(probs[:, objects], axis=1)]
+    score = probs[np.arange(len(centres)), best]
+    keep = score > probs[:, reject] if reject is not None else np.ones(len(centres), bool)
+    half = classifier.window // 2
+    out = []
+    for i in np.flatnonzero(keep):
+        u, v = centres[i]
+        x0, y0 = window_origin((u, v), classifier.window)
+        box = (max(x0, 0), max(y0, 0), min(x0 + 2 * half - 1, w - 1), min(y0 + 2 * half - 1, h - 1))
+        c = int(best[i])
+        out.append(Detection(c, classifier.labels[c], float(score[i]), box, (u, v), 0))
+    return out, probs
 
 
 def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
@@ -357,6 +484,6 @@ def saccade_target(detections: Sequence[Detection], centre: tuple[float, float],
 __all__ = ['BACKGROUND_LABEL', 'Box', 'Classifier', 'DEFAULT_INPUT_SIZE', 'DEFAULT_THRESHOLD',
            'DEFAULT_TOP_K', 'Detection', 'IMAGENET_MEAN', 'IMAGENET_STD', 'ModelError',
            'Preprocessing',
-           'TwoPassResult', 'load_labels', 'load_preprocessing', 'localise',
-           'merge_second_pass', 'preprocessing_path_for', 'saccade_target', 'saliency_box',
-           'two_pass']
+           'TwoPassResult', 'crop_window', 'grid_centres', 'grid_recognition', 'load_labels',
+           'load_preprocessing', 'localise', 'merge_second_pass', 'preprocessing_path_for',
+           'saccade_target', 'saliency_box', 'two_pass', 'window_origin']
