@@ -96,8 +96,6 @@ RANDOM_PERIOD_S = 1.5          # random_gaze: a saccade this often
 RANDOM_AZIMUTH_DEG = 60.0
 RANDOM_ELEVATION_DEG = (-40.0, 30.0)   # below / above the horizon, from the ego frame
 START_TIMEOUT_S = 180.0
-ROBOT_NODES = ('gaze_controller', 'foveation', 'stereo_ses', 'cylinder_detector',
-               'mot_planner', 'object_map')
 
 
 @dataclass

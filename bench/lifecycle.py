@@ -44,6 +44,7 @@ OUTPUT = {
     'stereo_ses': ('/ses/cells', 'sensor_msgs/msg/PointCloud2'),
     'cylinder_detector': ('/cylinders', 'active_vision_msgs/msg/CylinderArray'),
     'mot_planner': ('/mot/tracks', 'active_vision_msgs/msg/TrackArray'),
+    'object_map': ('/objects/map', 'active_vision_msgs/msg/MapObjectArray'),
 }
 TIMEOUT_S = 120.0
 
