@@ -352,10 +352,10 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
         'saccades': run.saccades, 'eye_bytes': run.eye_bytes, 'eye_images': run.eye_images,
         'samples': run.samples,
     }
+    result['final_objects'] = map_objects(run.last_map, truth)
     if scene == 'tabletop':
         result.update(map_score(run.last_map, truth))
         result['truths'] = len(truth)
-        result['final_objects'] = map_objects(run.last_map, truth)
     if scene == 'visual_search':
         result['s_to_target'] = run.found_target_s
         result['saccades_to_target'] = run.saccades_to_target
