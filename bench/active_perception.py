@@ -180,13 +180,27 @@ class BenchNode(Node):
                 self.run.truth_boxes[self._stamp_ns(msg)] = msg
 
 
-def graph_file(out_dir: Path, scene: str, config: str, seed: int) -> Path:
+def parse_sets(items: list[str]) -> dict[str, dict[str, Any]]:
+    """--set node.param=value (value read as YAML) -> {node: {param: value}}."""
+    out: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, value = item.partition('=')
+        node, dot, param = key.partition('.')
+        if not (sep and dot and node and param):
+            raise ValueError(f'--set {item!r}: expected node.parameter=value')
+        out.setdefault(node, {})[param] = yaml.safe_load(value)
+    return out
+
+
+def graph_file(out_dir: Path, scene: str, config: str, seed: int,
+               extra: dict[str, dict[str, Any]] | None = None) -> Path:
     """The shipped graph, lock-stepped, without respawns or standbys, with the configuration's
-    parameters in a params file given to every node after its own."""
+    parameters (then extra, from --set) in a params file given to every node after its own."""
     params: dict[str, Any] = {'sim': {'ros__parameters': {'lockstep': True, 'scene': scene,
                                                           'seed': int(seed)}}}
-    for node, values in OVERRIDES[config].items():
-        params.setdefault(node, {'ros__parameters': {}})['ros__parameters'].update(values)
+    for overrides in (OVERRIDES[config], extra or {}):
+        for node, values in overrides.items():
+            params.setdefault(node, {'ros__parameters': {}})['ros__parameters'].update(values)
     path = out_dir / f'{scene}_{config}_{seed}_params.yaml'
     path.write_text(yaml.safe_dump(params))
     graph = yaml.safe_load(default_graph_file().read_text())
@@ -290,10 +304,10 @@ def cpu_by_node(launcher: Launcher) -> dict[str, float]:
 
 
 def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
-            out_dir: Path) -> dict[str, Any]:
+            out_dir: Path, extra: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """Launch, step through `seconds` of sim time sampling the figures, stop; the run's
     figures."""
-    graph = load_graph(graph_file(out_dir, scene, config, seed))
+    graph = load_graph(graph_file(out_dir, scene, config, seed, extra))
     log_path = out_dir / f'{scene}_{config}_{seed}_launch.log'
     run = Run(scene, config, seed)
     truth = truths(scene, seed)
@@ -494,9 +508,16 @@ def main() -> int:
                              'seed 0, 15 s each (under 10 minutes on 2 cores)')
     parser.add_argument('--out', type=Path,
                         default=Path('bench/results/active_perception'))
+    parser.add_argument('--set', nargs='+', default=[], metavar='NODE.PARAM=VALUE',
+                        help='a parameter for every run and configuration (after the '
+                             'configuration\'s own), e.g. object_map.dwell_s=0.5')
     ns = parser.parse_args()
     if ns.seconds <= 0:
         parser.error('--seconds must be positive')
+    try:
+        extra = parse_sets(ns.set)
+    except ValueError as exc:
+        parser.error(str(exc))
     plan = [(scene, config, seed) for scene in ns.scenes for config in ns.configs
             for seed in ns.seeds
             if scene == 'tabletop' or config in ('deployed', 'uniform')]
@@ -524,7 +545,7 @@ def main() -> int:
     try:
         with tempfile.TemporaryDirectory(prefix='active_perception_') as tmp:
             for scene, config, seed in tqdm(plan, desc='runs', unit='run', file=sys.stderr):
-                r = one_run(node, scene, config, seed, ns.seconds, Path(tmp))
+                r = one_run(node, scene, config, seed, ns.seconds, Path(tmp), extra)
                 results.append(r)
                 print(json.dumps({k: v for k, v in r.items() if k != 'samples'}),
                       file=sys.stderr, flush=True)
@@ -534,6 +555,8 @@ def main() -> int:
         node.destroy_node()
         ctx.try_shutdown()
     summary = summarize_runs(results, ns.seconds)
+    if extra:
+        summary['set'] = ns.set
     ns.out.with_suffix('.json').write_text(json.dumps({'summary': summary, 'runs': results},
                                                       indent=1))
     plot(results, ns.out.with_suffix('.png'))

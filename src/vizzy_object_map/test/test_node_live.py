@@ -145,7 +145,7 @@ class Peers(Node):
 def graph(context):
     mapper = map_node.ObjectMapNode(context=context, parameter_overrides=[
         Parameter('publish_period_s', value=0.1), Parameter('use_stereo_depth', value=False),
-        Parameter('min_pass', value=1)])
+        Parameter('min_pass', value=1), Parameter('max_pass', value=1)])
     peers = Peers(context, mapper)
     with spinning(context, [peers, mapper],
                   lambda: peers.cluster_pub.get_subscription_count() > 0
@@ -155,8 +155,11 @@ def graph(context):
 
 
 def test_parameter_table_and_config() -> None:
-    check_parameter_table(map_node.PARAMETERS, map_node.check_parameter, CONFIG, 'object_map')
-    with parameter_refusals(map_node.PARAMETERS, map_node.check_parameter) as refused:
+    check_parameter_table(map_node.PARAMETERS, map_node.check_parameter, CONFIG, 'object_map',
+                          check_all=map_node.check_all)
+    with parameter_refusals(map_node.PARAMETERS, map_node.check_parameter,
+                            map_node.check_all) as refused:
+        assert 'max_pass' in (refused('min_pass', 1) or '')
         assert 'map_frame' in (refused('map_frame', '/') or '')
         assert refused('min_recognitions', 0) and refused('association_radius_m', 0.0)
         assert refused('min_recognitions', 3) is None

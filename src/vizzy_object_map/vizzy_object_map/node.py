@@ -5,7 +5,8 @@ resolved defaults. The map lives in map_frame (base_link, REP 103: x forward, z 
 
 Subscribes
   /foveation/detections     active_vision_msgs/FoveatedDetectionArray: recognitions. Each
-                            detection of pass min_pass or later names what lies under its
+                            detection of passes min_pass to max_pass (default: the first pass,
+                            at the gaze fixation) names what lies under its
                             fixation (fixation_u, fixation_v): the classifier learned from views
                             foveated at an object, labelled with the object under the fovea
   /vizzy/left/camera_info   sensor_msgs/CameraInfo: K and size of the detections' camera
@@ -128,9 +129,12 @@ PARAMETERS: tuple[Param, ...] = (
           'Objects whose centres come closer than this become one [m], in (0, 1].', '(0, 1]'),
     Param('min_recognition_score', _DEFAULTS.min_recognition_score,
           'Recognitions scoring less are ignored, in [0, 1].', '[0, 1]'),
-    Param('min_pass', 0, 'Use the detections of this foveation pass and later (0: the first, '
-          'at the gaze fixation; 1: the refined one at each box centre), in [0, 255].',
+    Param('min_pass', 0, 'Use the detections of foveation passes min_pass to max_pass (0: the '
+          'first, at the gaze fixation; 1: the refined one at each box centre), in [0, 255].',
           '[0, 255]'),
+    Param('max_pass', 0, 'The last foveation pass used (see min_pass), in [0, 255]: the first '
+          'pass names the object the eyes fixate; the second pass\'s fixations land on object '
+          'edges and neighbours.', '[0, 255]', constraints='at least min_pass'),
     Param('min_recognitions', _DEFAULTS.min_recognitions,
           'An object geometry has seen is confirmed after this many recognitions named it, in '
           '[1, 1000].', '[1, 1000]'),
@@ -176,6 +180,13 @@ def check_parameter(name: str, value: Any) -> str | None:
     """Why value is not acceptable for parameter name (beyond the table's ranges), or None."""
     if name == 'map_frame' and not value.strip('/'):
         return 'map_frame must be a frame id'
+    return None
+
+
+def check_all(values: dict[str, Any]) -> str | None:
+    """What is wrong with the parameters taken together, or None."""
+    if values['max_pass'] < values['min_pass']:
+        return f'max_pass ({values["max_pass"]}) must be at least min_pass ({values["min_pass"]})'
     return None
 
 
@@ -287,7 +298,7 @@ class ObjectMapNode(Node):
 
     def __init__(self, **node_kwargs: Any) -> None:
         super().__init__('object_map', **node_kwargs)
-        self._p = declare_parameters(self, PARAMETERS, check_parameter,
+        self._p = declare_parameters(self, PARAMETERS, check_parameter, check_all=check_all,
                                      on_change=self._on_parameters_changed)
         self.map = ObjectMap(map_config(self._p))
         self.input_health = InputHealth(self)
@@ -386,7 +397,8 @@ class ObjectMapNode(Node):
 
     def _on_detections(self, msg: Any) -> None:
         topic = self._topics[DETECTIONS_TOPIC]
-        chosen = [d for d in msg.detections if d.pass_index >= self._p['min_pass']]
+        chosen = [d for d in msg.detections
+                  if self._p['min_pass'] <= d.pass_index <= self._p['max_pass']]
         if not chosen:
             self.input_health.accept(topic)
             return
