@@ -229,3 +229,20 @@ def test_looks_go_to_unnamed_objects_settle_dwell_and_give_up() -> None:
     assert third is not None and third.id == second.id and looks.abandoned == 1
     assert looks.update(18.0, False, False, m, origin, None) is None        # given up on a
     assert looks.state == IDLE and looks.looks[second.id] == 2 and looks.sent == 3
+
+
+def test_two_pieces_of_one_large_box_merge_by_overlap() -> None:
+    m = ObjectMap(MapConfig(association_radius_m=0.02, merge_radius_m=0.03, merge_overlap=0.5))
+    # a 14 cm box seen as two clusters 6 cm apart: the small piece lies inside the big one
+    big = GeometryObservation(np.array([0.9, 0.0, 0.3]), np.eye(3) * 1e-4,
+                              np.array([0.14, 0.14, 0.12]), 0.0)
+    piece = GeometryObservation(np.array([0.9, 0.06, 0.3]), np.eye(3) * 1e-4,
+                                np.array([0.04, 0.04, 0.10]), 0.0)
+    m.add_geometry([big, piece])
+    assert len(m) == 1 and m.merged == 1
+    # two small objects side by side, 5 cm apart, do not touch: kept apart
+    m2 = ObjectMap(MapConfig(association_radius_m=0.02))
+    m2.add_geometry([geometry(0.9, 0.0, 0.3, size=0.04), geometry(0.9, 0.05, 0.3, size=0.04)])
+    assert len(m2) == 2
+    with pytest.raises(ValueError, match='merge_overlap'):
+        MapConfig(merge_overlap=0.0)

@@ -50,6 +50,7 @@ Detection3DArray = message('vision_msgs/msg/Detection3DArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 MapObjectArray = message('active_vision_msgs/msg/MapObjectArray')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+GazeState = message('active_vision_msgs/msg/GazeState')
 
 
 def to_sensor(p: np.ndarray) -> np.ndarray:
@@ -74,6 +75,7 @@ class Peers(Node):
         self.cluster_pub = self.create_publisher(Detection3DArray,
                                                  topics[map_node.CLUSTERS_TOPIC], 10)
         self.cyl_pub = self.create_publisher(CylinderArray, topics[map_node.CYLINDERS_TOPIC], 10)
+        self.state_pub = self.create_publisher(GazeState, topics[map_node.GAZE_STATE_TOPIC], 10)
         self.objects: list[Any] = []
         self.markers: list[Any] = []
         self.maps: list[Any] = []
@@ -129,11 +131,18 @@ class Peers(Node):
         msg.cylinders.append(c)
         self.cyl_pub.publish(msg)
 
-    def publish_detection(self, label: str, score: float, at: np.ndarray,
+    def publish_gaze(self, fixation: np.ndarray, moving: bool = False) -> None:
+        msg = GazeState(in_saccade=moving, active_source='object_map')
+        msg.header.frame_id, msg.header.stamp = 'base_link', self.stamp()
+        msg.fixation_point.x, msg.fixation_point.y, msg.fixation_point.z = (float(v)
+                                                                           for v in fixation)
+        self.state_pub.publish(msg)
+
+    def publish_detection(self, label: str, score: float, at: np.ndarray | None,
                           pass_index: int = 1) -> None:
         msg = FoveatedDetectionArray()
         msg.header.frame_id, msg.header.stamp = CAMERA, self.stamp()
-        u, v = pixel(at)
+        u, v = pixel(at) if at is not None else (float(K[0, 2]), float(K[1, 2]))
         d = FoveatedDetection(label=label, class_id=0, score=score, fixation_u=u,
                               fixation_v=v, pass_index=pass_index)
         d.box.x_offset, d.box.y_offset, d.box.width, d.box.height = int(u) - 20, int(v) - 20, 40, 40
@@ -210,6 +219,31 @@ def test_objects_are_placed_by_geometry_and_named_by_recognitions(graph) -> None
     boxes = [m for m in markers if m.ns == 'objects']
     assert len(boxes) == 2 and sum(m.color.g > m.color.r for m in boxes) == 1
     assert any(m.text.startswith('can 1.00') for m in markers if m.ns == 'labels')
+
+
+def test_the_gazes_own_pixel_names_the_object_at_the_fixation_point(graph) -> None:
+    """A detection at the principal point names what lies where both optical axes meet (the
+    fixation point of /gaze/state), whatever the pixel's own ray hits; during a saccade the
+    fixation point says nothing."""
+    peers, mapper, executor = graph
+    assert all(r.successful for r in mapper.set_parameters([Parameter('min_pass', value=0)]))
+    peers.publish_poses()
+    assert wait_until(lambda: mapper._k is not None
+                      and mapper.poses.pose_at(RGBD, 0.0) is not None, TIMEOUT, spin=executor)
+    peers.publish_clusters()
+    assert wait_until(lambda: len(mapper.map) == 2, TIMEOUT, spin=executor)
+    peers.publish_gaze(CAN)
+    assert wait_until(lambda: mapper._fixations, TIMEOUT, spin=executor)
+    peers.publish_detection('can', 0.8, None, pass_index=0)      # at the principal point
+    assert wait_until(lambda: mapper.recognitions_received == 1, TIMEOUT, spin=executor)
+    named = [o for o in mapper.map.objects() if o.evidence]
+    assert len(named) == 1 and np.linalg.norm(named[0].position - CAN) < 0.01
+    # in a saccade: no fixation point, the pixel's ray hits nothing known: not placed
+    peers.publish_gaze(CAN, moving=True)
+    assert wait_until(lambda: mapper._fixations[-1][2], TIMEOUT, spin=executor)
+    peers.publish_detection('box', 0.8, None, pass_index=0)
+    assert wait_until(lambda: mapper.recognitions_received == 2, TIMEOUT, spin=executor)
+    assert mapper.recognitions_placed == 1 and 'box' not in named[0].evidence
 
 
 def test_a_detection_before_the_camera_info_is_refused_and_the_node_goes_on(graph) -> None:

@@ -102,6 +102,10 @@ GAZE_STATE_TOPIC = 'gaze/state'
 GAZE_COMMAND_TOPIC = 'gaze/command'
 GAZE_SOURCE = 'object_map'
 LOOK_PERIOD_S = 0.1                 # how often the look scheduler runs (node clock)
+FIXATION_PIXEL_PX = 3.0             # a detection this near the principal point is the gaze's own
+FIXATION_MAX_AGE_S = 0.25           # a gaze state older than this tells nothing of an image
+FIXATION_SIGMA_M = 0.01             # the vergence point's uncertainty as an object's position
+FIXATIONS_KEPT = 200                # gaze states remembered (several seconds at its rate)
 OBJECTS_TOPIC = 'objects'
 MARKERS_TOPIC = 'objects/markers'
 MAP_TOPIC = 'objects/map'
@@ -127,6 +131,9 @@ PARAMETERS: tuple[Param, ...] = (
           '(0, 1]'),
     Param('merge_radius_m', _DEFAULTS.merge_radius_m,
           'Objects whose centres come closer than this become one [m], in (0, 1].', '(0, 1]'),
+    Param('merge_overlap', _DEFAULTS.merge_overlap,
+          'Objects whose boxes overlap by at least this share of the smaller box become one, '
+          'in (0, 1].', '(0, 1]'),
     Param('min_recognition_score', _DEFAULTS.min_recognition_score,
           'Recognitions scoring less are ignored, in [0, 1].', '[0, 1]'),
     Param('min_pass', 0, 'Use the detections of foveation passes min_pass to max_pass (0: the '
@@ -171,7 +178,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param('max_looks', 3, 'Looks at an object that stays unnamed before it is given up, in '
           '[1, 100].', '[1, 100]'),
 )
-MAP_PARAMETERS = ('association_radius_m', 'merge_radius_m', 'min_recognition_score',
+MAP_PARAMETERS = ('association_radius_m', 'merge_radius_m', 'merge_overlap',
+                  'min_recognition_score',
                   'min_recognitions', 'min_recognitions_without_geometry', 'min_label_share',
                   'established_geometry', 'tentative_timeout_s', 'reject_label')
 
@@ -336,6 +344,8 @@ class ObjectMapNode(Node):
         self._in_saccade = False
         self._gaze_ours = False
         self._fixation: np.ndarray | None = None     # the gaze fixation, map frame
+        # (stamp, fixation point in the map frame or None, in_saccade) of recent gaze states
+        self._fixations: list[tuple[float, np.ndarray | None, bool]] = []
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         self._topics[GAZE_STATE_TOPIC] = self.resolve_topic_name(GAZE_STATE_TOPIC)
         self._subs.append(self.create_subscription(
@@ -412,16 +422,22 @@ class ObjectMapNode(Node):
         view = CameraView(self._k, pose, *self._camera_size)
         stamp = stamp_seconds(msg.header.stamp)
         depth = self._depth_points(stamp)
+        vergence = self.fixation_at(stamp)
+        principal = (float(self._k[0, 2]), float(self._k[1, 2]))
         recognitions = []
         for d in chosen:
             u, v = float(d.fixation_u), float(d.fixation_v)
             if not (math.isfinite(u) and math.isfinite(v) and math.isfinite(d.score)):
                 self.input_health.refuse(topic, NON_FINITE, f'detection {d.label!r}')
                 continue
-            surface = (surface_point_at(view, u, v, depth, self._p['depth_radius_px'])
-                       if depth is not None and self.map.objects_at_pixel(view, u, v) == []
-                       else None)
-            point, cov = surface if surface is not None else (None, None)
+            point, cov = None, None
+            if (vergence is not None and abs(u - principal[0]) <= FIXATION_PIXEL_PX
+                    and abs(v - principal[1]) <= FIXATION_PIXEL_PX):
+                # the gaze's own pixel shows the point where both optical axes meet
+                point, cov = vergence, np.eye(3) * FIXATION_SIGMA_M ** 2
+            elif depth is not None and self.map.objects_at_pixel(view, u, v) == []:
+                surface = surface_point_at(view, u, v, depth, self._p['depth_radius_px'])
+                point, cov = surface if surface is not None else (None, None)
             recognitions.append(Recognition(u, v, d.label, float(d.score), stamp, point, cov))
         placed = self.map.add_recognitions(recognitions, view)
         self.recognitions_received += len(recognitions)
@@ -511,7 +527,20 @@ class ObjectMapNode(Node):
             self._fixation = None
         else:
             self._fixation = m[:3, :3] @ np.array([p.x, p.y, p.z]) + m[:3, 3]
+        active = bool(msg.active_source) and np.isfinite([p.x, p.y, p.z]).all()
+        self._fixations.append((stamp_seconds(msg.header.stamp),
+                                self._fixation if active else None, self._in_saccade))
+        del self._fixations[:-FIXATIONS_KEPT]
         self.input_health.accept(self._topics[GAZE_STATE_TOPIC])
+
+    def fixation_at(self, t: float) -> np.ndarray | None:
+        """Where both optical axes met at time t (the map frame): the latest gaze state at or
+        before t, if the eyes were still and it is recent; else None."""
+        for stamp, point, moving in reversed(self._fixations):
+            if stamp <= t + 1e-3:
+                ok = point is not None and not moving and t - stamp <= FIXATION_MAX_AGE_S
+                return point if ok else None
+        return None
 
     def look(self) -> None:
         """The look scheduler's turn (timer): maybe a saccade to an unnamed object."""

@@ -23,7 +23,8 @@ evidence: each recognition adds its score to its label's tally (a reject label s
   with a name holding at least ``min_label_share`` of its evidence, and geometry has seen it too
   (or, without geometry, once ``min_recognitions_without_geometry`` recognitions named it).
 
-Objects closer than ``merge_radius_m`` are merged (a cluster split and rejoined across views).
+Objects closer than ``merge_radius_m``, or whose boxes overlap by ``merge_overlap`` of the smaller
+one, are merged (a cluster split in one view and whole in the next).
 Everything is plain numpy; nothing here knows ROS.
 """
 
@@ -54,6 +55,7 @@ class MapConfig:
 
     association_radius_m: float = 0.06
     merge_radius_m: float = 0.03
+    merge_overlap: float = 0.5
     min_recognition_score: float = 0.3
     min_recognitions: int = 2
     min_recognitions_without_geometry: int = 4
@@ -73,6 +75,8 @@ class MapConfig:
         if not 0.0 <= self.min_recognition_score <= 1.0:
             raise ValueError(f'min_recognition_score must be in [0, 1], '
                              f'got {self.min_recognition_score}')
+        if not 0.0 < self.merge_overlap <= 1.0:
+            raise ValueError(f'merge_overlap must be in (0, 1], got {self.merge_overlap}')
         if not 0.0 <= self.min_label_share <= 1.0:
             raise ValueError(f'min_label_share must be in [0, 1], got {self.min_label_share}')
         for name in ('min_recognitions', 'min_recognitions_without_geometry',
@@ -350,27 +354,30 @@ class ObjectMap:
         return out
 
     def _recognition_target(self, rec: Recognition, view: CameraView) -> MapObject | None:
+        """The object a recognition names. Without a point: the front-most object whose box holds
+        its pixel. With one (the 3D point the pixel shows: the eyes' fixation point, or a depth
+        sensor's surface point): the object, under the pixel or not, whose extent comes nearest
+        to the point, within association_radius_m; None if there is none (the caller may start
+        an object at the point)."""
         under = self.objects_at_pixel(view, rec.u, rec.v)
         if rec.point is None:
             return self._objects[under[0]] if under else None
         point = np.asarray(rec.point, np.float64)
         best, best_d = None, math.inf
-        for oid in under:
-            obj = self._objects[oid]
-            # the surface point lies within the object's half extent of its centre
+        for obj in self._objects.values():
+            # the point lies within the object's half extent of its centre
             d = float(np.linalg.norm(obj.position - point)) - 0.5 * float(np.max(obj.size))
             if d <= self.config.association_radius_m and d < best_d:
                 best, best_d = obj, d
-        if best is None and under:
-            # the pixel is on an object's box but the depth says something nearer or farther:
-            # trust the depth when it is far from every object under the pixel
-            return None
         return best
 
     # --- upkeep -----------------------------------------------------------------------------
 
     def _merge_close(self) -> None:
-        radius = self.config.merge_radius_m
+        """Merge pairs of objects whose centres are closer than merge_radius_m, or whose boxes
+        overlap by at least merge_overlap of the smaller box (a large object segmented in two
+        pieces in one view), the closest pair first, until none is left."""
+        radius, overlap = self.config.merge_radius_m, self.config.merge_overlap
         while True:
             objects = self.objects()
             if len(objects) < 2:
@@ -378,9 +385,18 @@ class ObjectMap:
             x = np.array([o.position for o in objects])
             d = np.linalg.norm(x[:, None] - x[None], axis=2)
             np.fill_diagonal(d, np.inf)
-            i, j = np.unravel_index(int(np.argmin(d)), d.shape)
-            if d[i, j] > radius:
+            sizes = np.array([o.size for o in objects])
+            lo, hi = x - 0.5 * sizes, x + 0.5 * sizes
+            inter = np.prod(np.clip(np.minimum(hi[:, None], hi[None]) - np.maximum(lo[:, None],
+                                                                                    lo[None]),
+                                    0.0, None), axis=2)
+            vol = np.prod(sizes, axis=1)
+            share = inter / np.maximum(np.minimum(vol[:, None], vol[None]), 1e-12)
+            np.fill_diagonal(share, 0.0)
+            candidates = (d <= radius) | (share >= overlap)
+            if not candidates.any():
                 return
+            i, j = np.unravel_index(int(np.argmin(np.where(candidates, d, np.inf))), d.shape)
             keep, gone = sorted((objects[i], objects[j]), key=lambda o: o.id)
             keep.position, keep.covariance = _fuse(keep.position, keep.covariance, gone.position,
                                                    gone.covariance, self.config.min_sigma_m ** 2)
