@@ -66,7 +66,8 @@ saccade_min_offset_px of the principal point. model_path / labels_path: a TorchS
 its labels (package://foveation_node/... means inside the installed package; an empty
 model_path disables recognition); a path that is no file is refused like any bad parameter value
 (at start-up: one line and exit 2); a file that does not load is logged and recognition stays off.
-The default model knows the simulator's 7 object classes and 'background' (the reject class,
+The default model (fovea_cnn, a window model: it sees the 160 px window around each pass's
+fixation) knows the simulator's 7 object classes and 'background' (the reject class,
 core.recognition.BACKGROUND_LABEL: never published as a detection, localised or saccaded to; a
 pass-2 label must beat it on its own image, so a view of a wall gives no pass-2 detection); for
 real scenes, point model_path / labels_path at an ImageNet network written by
@@ -152,8 +153,10 @@ OVERLAY_TOPIC = '~/overlay'
 GAZE_COMMAND_TOPIC = 'gaze/command'
 GAZE_SOURCE = 'foveation'
 GAZE_PRIORITY = 30          # saccades: above stereo_ses (20) and mot_planner (10)
-DEFAULT_MODEL = 'package://foveation_node/models/foveation_cnn.pt'
-DEFAULT_LABELS = 'package://foveation_node/models/foveation_cnn.labels'
+# the window model (sees the 160 px around each pass's fixation; docs/foveation.md, "The window
+# model"); the whole-frame model foveation_cnn.pt stays beside it
+DEFAULT_MODEL = 'package://foveation_node/models/fovea_cnn.pt'
+DEFAULT_LABELS = 'package://foveation_node/models/fovea_cnn.labels'
 ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 FIXATION_OUTSIDE = 'fixation outside image'

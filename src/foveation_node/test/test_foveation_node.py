@@ -88,7 +88,7 @@ def test_bad_start_up_values_are_one_line_naming_node_parameter_and_rule() -> No
 
 def test_package_paths_resolve_to_the_packaged_model() -> None:
     model = node.resolve_path(node.DEFAULT_MODEL)
-    assert model.name == 'foveation_cnn.pt' and model.parent.name == 'models'
+    assert model.name == 'fovea_cnn.pt' and model.parent.name == 'models'
     assert model.parent.parent == Path(node.__file__).parent
     assert node.resolve_path('/tmp/x.pt') == Path('/tmp/x.pt')
     with pytest.raises(ValueError, match='no installed package'):

@@ -1,4 +1,6 @@
-"""The packaged recognition model on freshly rendered held-out views (a seed used neither for
+"""The packaged whole-frame recognition model (foveation_cnn: the foveated frame shrunk to
+227x227; the node's default is the window model, test_window_model.py) on freshly rendered
+held-out views (a seed used neither for
 training nor for the training's held-out set): it beats chance by a wide margin, and its
 saliency boxes land on the rendered object; its background class says "nothing here" on a
 wall (rendered and synthetic) and not on objects."""
@@ -10,12 +12,14 @@ import pytest
 
 from foveation_node.core.foveation import Foveator
 from foveation_node.core.recognition import BACKGROUND_LABEL, Classifier, localise, two_pass
-from foveation_node.node import DEFAULT_LABELS, DEFAULT_MODEL, resolve_path
+from foveation_node.node import resolve_path
 
 pytest.importorskip('mujoco')
 render_mod = pytest.importorskip('vizzy_sim_bridge.core.render')
 
 PER_CLASS = 5
+MODEL = 'package://foveation_node/models/foveation_cnn.pt'
+LABELS = 'package://foveation_node/models/foveation_cnn.labels'
 
 
 @pytest.fixture(scope='module')
@@ -30,7 +34,7 @@ def views():
 
 @pytest.fixture(scope='module')
 def classifier():
-    return Classifier(resolve_path(DEFAULT_MODEL), resolve_path(DEFAULT_LABELS))
+    return Classifier(resolve_path(MODEL), resolve_path(LABELS))
 
 
 def test_the_packaged_model_loads_with_its_preprocessing(classifier) -> None:
@@ -38,7 +42,8 @@ def test_the_packaged_model_loads_with_its_preprocessing(classifier) -> None:
     assert classifier.labels == [*CLASSES, BACKGROUND_LABEL]
     assert classifier.reject_class == len(CLASSES)
     assert classifier.preprocessing.input_size == (227, 227)
-    assert resolve_path(DEFAULT_MODEL).stat().st_size < 2 * 1024 * 1024     # small for the repo
+    assert classifier.window == 0                                   # the whole frame
+    assert resolve_path(MODEL).stat().st_size < 2 * 1024 * 1024     # small for the repo
 
 
 def test_beats_chance_on_fresh_renders(classifier, views) -> None:

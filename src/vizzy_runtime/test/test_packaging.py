@@ -62,9 +62,10 @@ PIP_ONLY = {
 # Shared packages any package may use; every other workspace package is a node package, which
 # imports no other node package (DESIGN: nodes are thin adapters over shared pieces).
 SHARED = frozenset({'vizzy_runtime', 'vizzy_vision', 'active_vision_msgs'})
-# What only training and data generation (<pkg>/training/) import: the simulated head. Declared as
+# What only training and data generation (<pkg>/training/) import: the simulated head (and the gaze
+# controller's inverse kinematics, to render the head fixating an object as it would). Declared as
 # a test dependency, so a robot that installs a perception node installs no simulator.
-TRAINING_ONLY = frozenset({'vizzy_sim_bridge', 'mujoco'})
+TRAINING_ONLY = frozenset({'vizzy_sim_bridge', 'mujoco', 'vizzy_gaze'})
 
 # 'pkg/msg/Type' placeholders in docstrings and messages, not packages.
 PLACEHOLDERS = frozenset({'pkg'})

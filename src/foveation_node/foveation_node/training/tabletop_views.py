@@ -94,6 +94,7 @@ class TabletopViews:
         self.k = camera_matrix(self.width, self.height, EYE_HFOV_DEG)
         self._seed: int | None = None
         self._renderer: Any = None
+        self._points: list[tuple[int, str, np.ndarray]] | None = None
 
     def _load(self, seed: int) -> None:
         import mujoco
@@ -121,6 +122,7 @@ class TabletopViews:
                                      np.nonzero(m.geom_bodyid == b)[0]))
         self._body_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
                           for _, n, _ in self._bodies]
+        self._points = None
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -141,6 +143,43 @@ class TabletopViews:
         fx, cx, cy = self.k[0, 0], self.k[0, 2], self.k[1, 2]
         z_safe = np.maximum(z, 1e-3)
         return np.column_stack([fx * x / z_safe + cx, fx * y / z_safe + cy]), z
+
+    def object_points(self, seed: int) -> list[tuple[int, str, np.ndarray]]:
+        """(class index, body name, body origin in the world frame [m]) of every object of
+        scene seed (the scene's initial state, as view renders it): where a gaze controller
+        told of the object would fixate it. RuntimeError as view."""
+        import mujoco
+
+        if self._seed != seed:
+            self._load(seed)
+        if self._points is None:
+            sim = self._sim
+            d = mujoco.MjData(sim.model)            # leaves the last view's state alone
+            d.qpos[:] = sim.data.qpos
+            mujoco.mj_forward(sim.model, d)
+            self._points = [(label, name, d.xpos[body].copy()) for (label, name, _), body
+                            in zip(self._bodies, self._body_ids, strict=True)]
+        return list(self._points)
+
+    def object_under(self, u: float, v: float) -> str | None:
+        """Name of the object whose geom the ray through pixel (u, v) of the last view hits
+        first (what the eye sees there); None if the ray hits no object (or nothing)."""
+        import mujoco
+
+        if self._seed is None:
+            raise RuntimeError('no view rendered yet')
+        m, d = self._sim.model, self._data
+        fx, cx, cy = self.k[0, 0], self.k[0, 2], self.k[1, 2]
+        rot = d.cam_xmat[self._cam].reshape(3, 3)
+        ray = rot @ np.array([(u - cx) / fx, -(v - cy) / fx, -1.0])   # camera looks along -z
+        geom = np.full(1, -1, np.int32)
+        mujoco.mj_ray(m, d, d.cam_xpos[self._cam], ray / np.linalg.norm(ray), None, 1,
+                      int(m.cam_bodyid[self._cam]), geom)
+        if geom[0] < 0:
+            return None
+        body = int(m.geom_bodyid[geom[0]])
+        return next((name for (_, name, _), b in zip(self._bodies, self._body_ids, strict=True)
+                     if b == body), None)
 
     def view(self, seed: int, joints: tuple[float, ...] = DEFAULT_JOINTS) -> TableView:
         """tabletop(seed) from the left eye with the head at joints (JOINT_NAMES order, rad).
