@@ -159,8 +159,10 @@ PARAMETERS: tuple[Param, ...] = (
           'last seen [s], in (0, 3600].', '(0, 3600]'),
     Param('reject_label', _DEFAULTS.reject_label,
           'The recogniser\'s "nothing here" label: it names nothing and counts against names.'),
-    Param('use_stereo_depth', True,
-          f'Place recognitions that fall on no known object with the depth of {STEREO_TOPIC}.'),
+    Param('use_stereo_depth', False,
+          f'Place recognitions that fall on no known object with the depth of {STEREO_TOPIC} '
+          '(off by default: the surface under the pixel is often not the object the window '
+          'names, e.g. the floor seen past a thin handle; for scenes without segmentation).'),
     Param('stereo_max_age_s', 3.0,
           f'Use a {STEREO_TOPIC} cloud for at most this long after its stamp [s], in (0, 60].',
           '(0, 60]'),
