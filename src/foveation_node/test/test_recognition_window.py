@@ -96,3 +96,28 @@ def test_a_bad_window_is_refused_in_one_line(stub_model) -> None:
     model.with_suffix('.json').write_text(json.dumps({'window': 3}))
     with pytest.raises(ModelError, match='window must be'):
         Classifier(model, labels)
+
+
+def test_the_shared_training_epoch_learns_a_separable_toy_set() -> None:
+    """train_epoch (both trainers' loop): red vs green 8x8 images, a linear model, two epochs."""
+    import torch
+    from torch import nn
+
+    from foveation_node.training.train_classifier import train_epoch
+    rng = np.random.default_rng(0)
+    x = np.zeros((64, 8, 8, 3), np.uint8)
+    y = np.arange(64) % 2
+    x[y == 0, :, :, 0] = 200
+    x[y == 1, :, :, 1] = 200
+    model = nn.Sequential(nn.Flatten(), nn.Linear(8 * 8 * 3, 2))
+    opt = torch.optim.SGD(model.parameters(), lr=0.05)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda step: 1.0)
+
+    def to_input(batch: np.ndarray) -> torch.Tensor:
+        return torch.from_numpy(np.ascontiguousarray(batch)).permute(0, 3, 1, 2).float() / 255
+
+    losses = [train_epoch(model, opt, sched, x, y, rng.permutation(64), 8, to_input, rng,
+                          'toy', sort_batches=bool(e))[0] for e in range(3)]
+    assert losses[-1] < losses[0]
+    with torch.no_grad():
+        assert (model(to_input(x)).argmax(1).numpy() == y).all()

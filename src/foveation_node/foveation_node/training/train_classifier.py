@@ -252,6 +252,46 @@ def render_search_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray, n
             np.asarray([len(CLASSES)] * len(images) + labels, np.int64))
 
 
+def train_epoch(model: torch.nn.Module, opt: Any, sched: Any, x_train: np.ndarray,
+                y_train: np.ndarray, order: np.ndarray, batch_size: int,
+                to_input: Any, rng: np.random.Generator, desc: str,
+                gain: tuple[float, float] = (0.8, 1.2),
+                sort_batches: bool = False) -> tuple[float, float]:
+    """One epoch over x_train[order] in batches: mirror images at random, brightness (gain
+    uniform in `gain`) and offset (N(0, 0.15)) jitter per image, cross-entropy with label
+    smoothing 0.05, one optimiser and scheduler step per batch. sort_batches: read each batch's
+    rows in index order (kinder to a large memory-mapped x_train). Returns (mean loss, training
+    top-1)."""
+    import torch
+    from torch import nn
+    from tqdm import tqdm
+
+    total, correct, loss_sum = 0, 0, 0.0
+    bar = tqdm(range(0, len(order), batch_size), desc=desc, unit='batch', mininterval=10)
+    for i in bar:
+        idx = np.sort(order[i:i + batch_size]) if sort_batches else order[i:i + batch_size]
+        batch = x_train[idx]
+        flip = rng.random(len(idx)) < 0.5                        # mirror images
+        batch = np.where(flip[:, None, None, None], batch[:, :, ::-1], batch)
+        x = to_input(batch)
+        # brightness / contrast jitter, per image
+        g = torch.from_numpy(rng.uniform(gain[0], gain[1], (len(idx), 1, 1, 1))).float()
+        b = torch.from_numpy(rng.normal(0.0, 0.15, (len(idx), 1, 1, 1))).float()
+        x = x * g + b
+        y = torch.from_numpy(y_train[idx])
+        out = model(x)
+        loss = nn.functional.cross_entropy(out, y, label_smoothing=0.05)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+        total += len(idx)
+        correct += int((out.argmax(1) == y).sum())
+        loss_sum += loss.item() * len(idx)
+        bar.set_postfix(loss=f'{loss_sum / total:.3f}', acc=f'{correct / total:.3f}')
+    return loss_sum / max(total, 1), correct / max(total, 1)
+
+
 def load_grown(model: torch.nn.Module, state: dict[str, torch.Tensor]) -> None:
     """Load state (same architecture) into model; a tensor with fewer rows than the model's
     (the last layer of a model with fewer classes) fills the first rows and the new rows
@@ -337,8 +377,6 @@ def _main(argv: list[str] | None = None) -> int:
         parser.error('--background-share must be in (0, 1)')
 
     import torch
-    from torch import nn
-    from tqdm import tqdm
 
     from foveation_node.training.object_views import CLASSES
 
@@ -503,30 +541,8 @@ def _main(argv: list[str] | None = None) -> int:
     model.train()
     for epoch in range(args.epochs):
         order = rng.choice(args.train, args.train, p=weights)       # class-balanced
-        total, correct, loss_sum = 0, 0, 0.0
-        bar = tqdm(range(0, args.train, args.batch), desc=f'epoch {epoch + 1}/{args.epochs}',
-                   unit='batch')
-        for i in bar:
-            idx = order[i:i + args.batch]
-            batch = x_train[idx]
-            flip = rng.random(len(idx)) < 0.5                        # mirror images
-            batch = np.where(flip[:, None, None, None], batch[:, :, ::-1], batch)
-            x = to_input(batch)
-            # brightness / contrast jitter, per image
-            gain = torch.from_numpy(rng.uniform(0.8, 1.2, (len(idx), 1, 1, 1))).float()
-            bias = torch.from_numpy(rng.normal(0.0, 0.15, (len(idx), 1, 1, 1))).float()
-            x = x * gain + bias
-            y = torch.from_numpy(y_train[idx])
-            out = model(x)
-            loss = nn.functional.cross_entropy(out, y, label_smoothing=0.05)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
-            total += len(idx)
-            correct += int((out.argmax(1) == y).sum())
-            loss_sum += float(loss) * len(idx)
-            bar.set_postfix(loss=f'{loss_sum / total:.3f}', acc=f'{correct / total:.3f}')
+        train_epoch(model, opt, sched, x_train, y_train, order, args.batch, to_input, rng,
+                    f'epoch {epoch + 1}/{args.epochs}')
         if (epoch + 1) % 5 == 0 or epoch + 1 == args.epochs:
             probs = evaluate(t_val)
             print(f'epoch {epoch + 1}: ' + line('held-out', scores(evaluate(x_val), y_val))

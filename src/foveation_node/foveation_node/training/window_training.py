@@ -153,8 +153,6 @@ def train(args: argparse.Namespace, argv: list[str] | None) -> int:
     import warnings
 
     import torch
-    from torch import nn
-    from tqdm import tqdm
 
     from foveation_node.training.object_views import CLASSES
     from foveation_node.training.train_classifier import (
@@ -162,6 +160,7 @@ def train(args: argparse.Namespace, argv: list[str] | None) -> int:
         SEARCH_VAL_SEED0,
         TABLETOP_SEED0,
         TABLETOP_VAL_SEED0,
+        train_epoch,
     )
     from foveation_node.training.window_views import (
         F0_RANGE,
@@ -237,34 +236,14 @@ def train(args: argparse.Namespace, argv: list[str] | None) -> int:
     history = []
     for epoch in range(args.epochs):
         order = rng.choice(n, n, p=weights)
-        total, correct, loss_sum = 0, 0, 0.0
-        bar = tqdm(range(0, n, args.batch), desc=f'epoch {epoch + 1}/{args.epochs}',
-                   unit='batch', mininterval=10)
-        for i in bar:
-            idx = np.sort(order[i:i + args.batch])
-            batch = x_train[idx]
-            flip = rng.random(len(idx)) < 0.5
-            batch = np.where(flip[:, None, None, None], batch[:, :, ::-1], batch)
-            x = to_input(batch)
-            gain = torch.from_numpy(rng.uniform(0.75, 1.25, (len(idx), 1, 1, 1))).float()
-            bias = torch.from_numpy(rng.normal(0.0, 0.15, (len(idx), 1, 1, 1))).float()
-            x = x * gain + bias
-            y = torch.from_numpy(y_train[idx])
-            out = model(x)
-            loss = nn.functional.cross_entropy(out, y, label_smoothing=0.05)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
-            total += len(idx)
-            correct += int((out.argmax(1) == y).sum())
-            loss_sum += loss.item() * len(idx)
-            bar.set_postfix(loss=f'{loss_sum / total:.3f}', acc=f'{correct / total:.3f}')
+        loss, top1 = train_epoch(model, opt, sched, x_train, y_train, order, args.batch,
+                                 to_input, rng, f'epoch {epoch + 1}/{args.epochs}',
+                                 gain=(0.75, 1.25), sort_batches=True)
         sc = scores(evaluate(x_val), y_val, s_val, CLASSES) if len(y_val) else None
-        history.append({'epoch': epoch + 1, 'loss': round(loss_sum / total, 4),
-                        'train_top1': round(correct / total, 4),
+        history.append({'epoch': epoch + 1, 'loss': round(loss, 4),
+                        'train_top1': round(top1, 4),
                         'held_out': summary_line(sc) if sc else None})
-        print(f'epoch {epoch + 1}: loss {loss_sum / total:.3f}, train {correct / total:.3f}; '
+        print(f'epoch {epoch + 1}: loss {loss:.3f}, train {top1:.3f}; '
               f'held-out {summary_line(sc) if sc else "-"} '
               f'({time.perf_counter() - t1:.0f} s)', flush=True)
     train_s = time.perf_counter() - t1
