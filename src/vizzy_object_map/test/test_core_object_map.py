@@ -246,3 +246,50 @@ def test_two_pieces_of_one_large_box_merge_by_overlap() -> None:
     assert len(m2) == 2
     with pytest.raises(ValueError, match='merge_overlap'):
         MapConfig(merge_overlap=0.0)
+
+
+def test_a_name_at_the_fixation_goes_to_what_stands_in_front_of_it() -> None:
+    """The camera looks at a short can's centre past a tall box in front of it: the image
+    centre shows the box, so the name is the box's (the recogniser names the occluder)."""
+    view = camera_looking_along_x(height=0.5)
+    m = ObjectMap(MapConfig(association_radius_m=0.06))
+    can = GeometryObservation(np.array([1.0, 0.0, 0.3]), np.eye(3) * 1e-4,
+                              np.array([0.066, 0.066, 0.12]), 0.0)
+    box = GeometryObservation(np.array([0.7, 0.0, 0.32]), np.eye(3) * 1e-4,
+                              np.array([0.1, 0.1, 0.2]), 0.0)
+    can_id, box_id = m.add_geometry([can, box])
+    origin = view.origin
+    assert m.first_on_ray(origin, can.position).id == box_id          # the box is in the way
+    assert m.first_on_ray(origin, np.array([1.0, 0.3, 0.3])) is None   # nothing there
+    # a ray that only grazes the box's loose corner does not count
+    assert m.first_on_ray(origin, np.array([0.75, 0.049, 0.3])) is None
+    rec = Recognition(*pixel_of(view, tuple(can.position)), 'box', 0.9, 1.0, can.position,
+                      np.eye(3) * 1e-4)
+    assert m.add_recognitions([rec], view) == [box_id]
+    # the box is taller than the can: no point of the can is in sight
+    from vizzy_object_map.core.attention import aim_point, choose_target
+    can_obj, box_obj = m.get(can_id), m.get(box_id)
+    assert can_obj is not None and box_obj is not None
+    assert aim_point(m, box_obj, origin) is not None
+    assert aim_point(m, can_obj, origin) is None          # hidden at its centre, top and sides
+    chosen = choose_target([can_obj, box_obj], {}, 3, origin, None,
+                           lambda o: aim_point(m, o, origin))
+    assert chosen is not None and chosen[0] is box_obj     # the hidden can waits
+
+
+def test_a_can_behind_a_low_box_is_aimed_at_over_it() -> None:
+    view = camera_looking_along_x(height=0.5)
+    m = ObjectMap()
+    tall_can = GeometryObservation(np.array([1.0, 0.0, 0.3]), np.eye(3) * 1e-4,
+                                   np.array([0.066, 0.066, 0.3]), 0.0)
+    low_box = GeometryObservation(np.array([0.7, 0.0, 0.25]), np.eye(3) * 1e-4,
+                                  np.array([0.1, 0.1, 0.3]), 0.0)
+    assert m.first_on_ray(view.origin, tall_can.position) is None     # (empty map)
+    can_id, box_id = m.add_geometry([tall_can, low_box])
+    from vizzy_object_map.core.attention import aim_point
+    assert m.first_on_ray(view.origin, tall_can.position).id == box_id   # centre: hidden
+    can_obj = m.get(can_id)
+    assert can_obj is not None
+    aim = aim_point(m, can_obj, view.origin)
+    assert aim is not None and aim[2] > tall_can.position[2]          # its upper part
+    assert m.first_on_ray(view.origin, aim) is can_obj

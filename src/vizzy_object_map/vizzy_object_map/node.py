@@ -562,14 +562,16 @@ class ObjectMapNode(Node):
                           hold_time=float(self._p['dwell_s']))
         cmd.header.stamp = self.get_clock().now().to_msg()
         cmd.header.frame_id = self._p['map_frame'].strip('/')
+        aim = self.looks.aim if self.looks.aim is not None else target.position
         (cmd.fixation_point.x, cmd.fixation_point.y,
-         cmd.fixation_point.z) = (float(v) for v in target.position)
+         cmd.fixation_point.z) = (float(v) for v in aim)
         self._gaze_pub.publish(cmd)
         self._gaze_ours = False            # until /gaze/state says the look is served
 
     def _head_origin(self) -> np.ndarray:
-        """Where the eyes are (the left camera's position) in the map frame, else the origin."""
-        for frame in ('ego', 'left_camera_optical_frame'):
+        """Where the recognising camera (the left one) is in the map frame, else the ego frame,
+        else the origin: the rays of the occlusion checks start there."""
+        for frame in ('left_camera_optical_frame', 'ego'):   # the recognising camera first
             try:
                 return self._tf.lookup_transform(self._p['map_frame'], frame)[:3, 3]
             except LookupError:

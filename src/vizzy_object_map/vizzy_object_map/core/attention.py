@@ -6,7 +6,11 @@ prior: it knows where objects *are* (segmented on the table) and which of them s
 name. So the next look goes to an established, unconfirmed object (the task bias), never to a
 confirmed one (inhibition of return), and a look lasts until the fixation has settled and
 ``dwell_s`` has passed on it, so the recogniser sees the object in its fovea (recognition on a
-settled fixation). An object looked at ``max_looks`` times without being confirmed is given up
+settled fixation). The eyes aim at a point of the object the camera can see: its centre, or
+if another object stands in the way (the camera's ray enters that one's box first, and the
+recogniser would name the occluder), the top of it, or one side, whichever is clear; an object
+hidden at all of them waits (the head moves, and its turn comes again). An object looked at
+``max_looks`` times without being confirmed is given up
 (the recogniser cannot name it from here), so the head does not stare at it for ever. Among the
 candidates the least-looked-at wins, then the one nearest in angle to the current fixation (short
 saccades).
@@ -18,7 +22,7 @@ saccades).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,19 +61,41 @@ def angle_between(origin: FloatArray, a: FloatArray, b: FloatArray) -> float:
     return float(np.arccos(np.clip(u @ v / (nu * nv), -1.0, 1.0)))
 
 
+def aim_point(object_map: ObjectMap, obj: MapObject, origin: FloatArray) -> FloatArray | None:
+    """A point of obj the camera at origin sees unoccluded: its centre, else a point near its
+    top, else one near either side (across the line of sight); None when each one's ray enters
+    another object's box first (ObjectMap.first_on_ray)."""
+    c, size = np.asarray(obj.position, np.float64), np.asarray(obj.size, np.float64)
+    sight = c - np.asarray(origin, np.float64)
+    across = np.array([-sight[1], sight[0], 0.0])
+    norm = float(np.linalg.norm(across))
+    across = across / norm if norm > 1e-9 else np.array([0.0, 1.0, 0.0])
+    half = 0.3 * float(np.max(size[:2]))
+    for aim in (c, c + np.array([0.0, 0.0, 0.35 * size[2]]), c + half * across,
+                c - half * across):
+        if object_map.first_on_ray(origin, aim, beyond_m=0.02) is obj:
+            return aim
+    return None
+
+
 def choose_target(candidates: Sequence[MapObject], looks: dict[int, int], max_looks: int,
-                  origin: FloatArray, fixation: FloatArray | None) -> MapObject | None:
-    """The candidate to look at next: looked at fewer than max_looks times; the least looked at
-    first, then the nearest in angle (seen from origin) to the current fixation."""
+                  origin: FloatArray, fixation: FloatArray | None,
+                  aim: Callable[[MapObject], FloatArray | None] | None = None
+                  ) -> tuple[MapObject, FloatArray] | None:
+    """The candidate to look at next and where to aim: looked at fewer than max_looks times and
+    visible (aim(obj) not None; default: its centre); the least looked at first, then the
+    nearest in angle (seen from origin) to the current fixation."""
     open_ = [o for o in candidates if looks.get(o.id, 0) < max_looks]
-    if not open_:
-        return None
 
     def key(o: MapObject) -> tuple[int, float, int]:
         angle = 0.0 if fixation is None else angle_between(origin, fixation, o.position)
         return looks.get(o.id, 0), angle, o.id
 
-    return min(open_, key=key)
+    for obj in sorted(open_, key=key):
+        point = aim(obj) if aim is not None else np.asarray(obj.position, np.float64)
+        if point is not None:
+            return obj, point
+    return None
 
 
 class LookScheduler:
@@ -81,6 +107,7 @@ class LookScheduler:
         self.state = IDLE
         self.target: int | None = None
         self.looks: dict[int, int] = {}
+        self.aim: FloatArray | None = None     # where the last look was sent (map frame)
         self._since = -math.inf          # when the current state began
         self.sent = 0
         self.settled = 0
@@ -94,8 +121,8 @@ class LookScheduler:
                origin: FloatArray, fixation: FloatArray | None) -> MapObject | None:
         """Advance the state machine at time now [s]. in_saccade: the gaze controller's
         in_saccade; ours: its active source is this scheduler's (our look is being served).
-        Returns the object to send a saccade to now (the scheduler then waits for it), or
-        None."""
+        Returns the object to send a saccade to now, aimed at self.aim (the scheduler then
+        waits for it), or None."""
         cfg = self.config
         if self.state == SACCADE:
             if ours and not in_saccade:
@@ -114,16 +141,17 @@ class LookScheduler:
             self.state = IDLE
         if in_saccade:
             return None
-        choice = choose_target(object_map.unrecognised(), self.looks, cfg.max_looks, origin,
-                               fixation)
-        if choice is None:
+        chosen = choose_target(object_map.unrecognised(), self.looks, cfg.max_looks, origin,
+                               fixation, lambda o: aim_point(object_map, o, origin))
+        if chosen is None:
             self.target = None
             return None
+        choice, self.aim = chosen
         self.looks[choice.id] = self.looks.get(choice.id, 0) + 1
         self.target, self.state, self._since = choice.id, SACCADE, now
         self.sent += 1
         return choice
 
 
-__all__ = ['DWELL', 'IDLE', 'LookConfig', 'LookScheduler', 'SACCADE', 'angle_between',
-           'choose_target']
+__all__ = ['DWELL', 'IDLE', 'LookConfig', 'LookScheduler', 'SACCADE', 'aim_point',
+           'angle_between', 'choose_target']

@@ -187,6 +187,25 @@ def _fuse(x: FloatArray, p: FloatArray, z: FloatArray, r: FloatArray,
     return x_new, p_new
 
 
+def segment_entry(origin: FloatArray, end: FloatArray, lo: FloatArray,
+                  hi: FloatArray) -> FloatArray:
+    """Where the segment origin -> end enters each axis-aligned box [lo_i, hi_i] (N, 3), as the
+    fraction t in [0, 1] of the way (0 when origin is inside); inf where it misses. The slab
+    method, vectorized over the boxes."""
+    o, d = np.asarray(origin, np.float64), np.asarray(end, np.float64) - np.asarray(origin,
+                                                                                   np.float64)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        a, b = (lo - o) / d, (hi - o) / d
+    near, far = np.minimum(a, b), np.maximum(a, b)
+    parallel = np.abs(d) < 1e-12
+    outside = parallel & ((o < lo) | (o > hi))
+    near = np.where(parallel, -np.inf, near)
+    far = np.where(parallel, np.inf, far)
+    t0 = np.maximum(near.max(axis=1), 0.0)
+    t1 = np.minimum(far.min(axis=1), 1.0)
+    return np.where((t0 <= t1) & ~outside.any(axis=1), t0, np.inf)
+
+
 def _box_corners(centres: FloatArray, sizes: FloatArray) -> FloatArray:
     """(N, 8, 3) corners of axis-aligned boxes."""
     signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
@@ -295,6 +314,25 @@ class ObjectMap:
 
     # --- recognitions -----------------------------------------------------------------------
 
+    def first_on_ray(self, origin: FloatArray, point: FloatArray, beyond_m: float = 0.05,
+                     shrink: float = 0.8) -> MapObject | None:
+        """The first object the ray from origin (a camera) through point (3D) enters, up to
+        beyond_m past the point: what the camera sees there. Boxes are shrunk to `shrink` of
+        their extent, so a ray grazing a box's loose corner does not count."""
+        objects = self.objects()
+        if not objects:
+            return None
+        o, p = np.asarray(origin, np.float64), np.asarray(point, np.float64)
+        length = float(np.linalg.norm(p - o))
+        if length < 1e-9:
+            return None
+        end = o + (p - o) * (1.0 + beyond_m / length)
+        centres = np.array([x.position for x in objects])
+        half = 0.5 * shrink * np.array([x.size for x in objects])
+        t = segment_entry(o, end, centres - half, centres + half)
+        i = int(np.argmin(t))
+        return objects[i] if np.isfinite(t[i]) else None
+
     def objects_at_pixel(self, view: CameraView, u: float, v: float) -> list[int]:
         """Ids of the objects whose projected box holds pixel (u, v) (within
         projection_margin_px), front-most first."""
@@ -356,13 +394,17 @@ class ObjectMap:
     def _recognition_target(self, rec: Recognition, view: CameraView) -> MapObject | None:
         """The object a recognition names. Without a point: the front-most object whose box holds
         its pixel. With one (the 3D point the pixel shows: the eyes' fixation point, or a depth
-        sensor's surface point): the object, under the pixel or not, whose extent comes nearest
-        to the point, within association_radius_m; None if there is none (the caller may start
-        an object at the point)."""
-        under = self.objects_at_pixel(view, rec.u, rec.v)
+        sensor's surface point): the first object the camera's ray through the point enters (an
+        object in front of the fixated one is what the image shows there: occlusion), else the
+        object whose extent comes nearest to the point, within association_radius_m; None if
+        there is none (the caller may start an object at the point)."""
         if rec.point is None:
+            under = self.objects_at_pixel(view, rec.u, rec.v)
             return self._objects[under[0]] if under else None
         point = np.asarray(rec.point, np.float64)
+        hit = self.first_on_ray(view.origin, point)
+        if hit is not None:
+            return hit
         best, best_d = None, math.inf
         for obj in self._objects.values():
             # the point lies within the object's half extent of its centre
