@@ -317,8 +317,9 @@ class ObjectMap:
     def first_on_ray(self, origin: FloatArray, point: FloatArray, beyond_m: float = 0.05,
                      shrink: float = 0.8) -> MapObject | None:
         """The first object the ray from origin (a camera) through point (3D) enters, up to
-        beyond_m past the point: what the camera sees there. Boxes are shrunk to `shrink` of
-        their extent, so a ray grazing a box's loose corner does not count."""
+        beyond_m past the point: what the camera sees there. Boxes are shrunk across (x, y) to
+        `shrink` of their extent, so a ray grazing a rotated box's loose corner does not count;
+        their height (z) is kept: objects stand on a table and a bottle's neck is in sight."""
         objects = self.objects()
         if not objects:
             return None
@@ -328,7 +329,7 @@ class ObjectMap:
             return None
         end = o + (p - o) * (1.0 + beyond_m / length)
         centres = np.array([x.position for x in objects])
-        half = 0.5 * shrink * np.array([x.size for x in objects])
+        half = 0.5 * np.array([x.size for x in objects]) * np.array([shrink, shrink, 1.0])
         t = segment_entry(o, end, centres - half, centres + half)
         i = int(np.argmin(t))
         return objects[i] if np.isfinite(t[i]) else None
