@@ -505,7 +505,7 @@ def main() -> int:
     parser.add_argument('--seconds', type=float, default=30.0)
     parser.add_argument('--quick', action='store_true',
                         help='tabletop with every configuration and visual_search deployed, '
-                             'seed 0, 15 s each (under 10 minutes on 2 cores)')
+                             'seed 0, 30 s each (about 7 minutes on 2 cores)')
     parser.add_argument('--out', type=Path,
                         default=Path('bench/results/active_perception'))
     parser.add_argument('--set', nargs='+', default=[], metavar='NODE.PARAM=VALUE',
@@ -522,7 +522,7 @@ def main() -> int:
             for seed in ns.seeds
             if scene == 'tabletop' or config in ('deployed', 'uniform')]
     if ns.quick:
-        ns.seconds = 15.0
+        ns.seconds = 30.0
         plan = ([('tabletop', c, 0) for c in CONFIGS]
                 + [('visual_search', 'deployed', 0)])
     ns.out.parent.mkdir(parents=True, exist_ok=True)
