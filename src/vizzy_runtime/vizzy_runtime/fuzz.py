@@ -350,6 +350,11 @@ class _Diagnostics:
                     self.count += 1
                     self.values = {kv.key: kv.value for kv in status.values}
 
+    def topic_total(self, topic: str) -> int:
+        """Messages on `topic` the node has counted so far, refused or accepted."""
+        return sum(int(v) for k, v in self.values.items()
+                   if k.startswith(f'{topic}: ') and v.isdigit())
+
     def close(self) -> None:
         dds.delete(self._reader)
 
@@ -436,6 +441,18 @@ def fuzz_node(name: str, per_topic: int, seed: int, *, graph_file: str | Path | 
             if diag.count <= seen + 1:
                 report.hung = True
                 break
+            # a busy node may still be working through the burst's backlog: its counts are read
+            # once two fresh statuses agree on this topic (or after HANG_S)
+            settle_until = time.monotonic() + HANG_S
+            last, seen = diag.topic_total(topic), diag.count
+            while time.monotonic() < settle_until and launcher.poll()[name] is None:
+                diag.poll()
+                if diag.count > seen:
+                    total = diag.topic_total(topic)
+                    if total == last and total > 0:
+                        break
+                    last, seen = total, diag.count
+                time.sleep(0.05)
     finally:
         ticking.set()
         diag.poll()
