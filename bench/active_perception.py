@@ -440,17 +440,32 @@ def summarize_runs(results: list[dict[str, Any]], seconds: float) -> dict[str, A
         out[f'{prefix}_eye_bytes'] = mean([r['eye_bytes'] for r in runs])
         out[f'{prefix}_saccades'] = mean([r['saccades'] for r in runs])
     if ('tabletop', 'deployed') in by and ('tabletop', 'uniform') in by:
-        ratios = []
+        # per seed: robot CPU seconds until recall at 5 cm first reached the uniform run's final
+        # recall, deployed and uniform (the uniform run reaches its own final recall early: it
+        # names every object in view at once); pooled over the seeds where deployed reaches it
+        per_seed: dict[str, float | None] = {}
+        spent_d = spent_u = 0.0
         uniform = {r['seed']: r for r in by[('tabletop', 'uniform')]}
-        for r in by[('tabletop', 'deployed')]:
+        for r in sorted(by[('tabletop', 'deployed')], key=lambda r: r['seed']):
             u = uniform.get(r['seed'])
-            if u is None or not u['cpu_robot_s']:
+            if u is None:
                 continue
-            reach = cpu_to_reach(r['samples'], u['recall_5cm'])
-            ratios.append(None if reach is None else reach / u['cpu_robot_s'])
-        out['cpu_ratio_deployed_vs_uniform'] = mean(ratios) if ratios and None not in ratios \
-            else None
-        out['cpu_ratio_runs_reaching_uniform'] = sum(x is not None for x in ratios)
+            reach_d = cpu_to_reach(r['samples'], u['recall_5cm'])
+            reach_u = cpu_to_reach(u['samples'], u['recall_5cm'])
+            if reach_d is None or not reach_u:
+                per_seed[str(r['seed'])] = None
+                continue
+            per_seed[str(r['seed'])] = round(reach_d / reach_u, 4)
+            spent_d += reach_d
+            spent_u += reach_u
+        out['cpu_ratio_deployed_vs_uniform'] = (round(spent_d / spent_u, 4) if spent_u > 0
+                                                else None)
+        out['cpu_ratio_runs_reaching_uniform'] = sum(x is not None for x in per_seed.values())
+        out['cpu_ratio_per_seed'] = per_seed
+        d_cpu = mean([r['cpu_robot_s'] for r in by[('tabletop', 'deployed')]])
+        u_cpu = mean([r['cpu_robot_s'] for r in by[('tabletop', 'uniform')]])
+        out[f'cpu_ratio_{tag}_deployed_vs_uniform'] = (round(d_cpu / u_cpu, 4)
+                                                       if d_cpu is not None and u_cpu else None)
     if ('visual_search', 'deployed') in by:
         out['search_s_to_target'] = out.get('visual_search_deployed_s_to_target')
     out['seeds'] = sorted({r['seed'] for r in results})
@@ -508,6 +523,8 @@ def main() -> int:
                              'seed 0, 30 s each (about 7 minutes on 2 cores)')
     parser.add_argument('--out', type=Path,
                         default=Path('bench/results/active_perception'))
+    parser.add_argument('--from-json', type=Path, metavar='JSON',
+                        help='no runs: summarize and plot the runs of an earlier <out>.json')
     parser.add_argument('--set', nargs='+', default=[], metavar='NODE.PARAM=VALUE',
                         help='a parameter for every run and configuration (after the '
                              'configuration\'s own), e.g. object_map.dwell_s=0.5')
@@ -526,6 +543,21 @@ def main() -> int:
         plan = ([('tabletop', c, 0) for c in CONFIGS]
                 + [('visual_search', 'deployed', 0)])
     ns.out.parent.mkdir(parents=True, exist_ok=True)
+    if ns.from_json is not None:
+        try:
+            earlier = json.loads(ns.from_json.read_text())
+            results, seconds = earlier['runs'], float(earlier['summary']['seconds'])
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            parser.error(f'--from-json {ns.from_json}: not a bench result ({exc})')
+        summary = summarize_runs(results, seconds)
+        for key in ('set',):
+            if key in earlier['summary']:
+                summary[key] = earlier['summary'][key]
+        ns.out.with_suffix('.json').write_text(json.dumps({'summary': summary, 'runs': results},
+                                                          indent=1))
+        plot(results, ns.out.with_suffix('.png'))
+        print(json.dumps(summary))
+        return 0
     from tqdm import tqdm
 
     ctx = Context()
