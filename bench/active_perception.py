@@ -520,7 +520,7 @@ def main() -> int:
     parser.add_argument('--seconds', type=float, default=30.0)
     parser.add_argument('--quick', action='store_true',
                         help='tabletop with every configuration and visual_search deployed, '
-                             'seed 0, 30 s each (about 7 minutes on 2 cores)')
+                             'seed 0, 30 s each (6 minutes on 2 cores)')
     parser.add_argument('--out', type=Path,
                         default=Path('bench/results/active_perception'))
     parser.add_argument('--from-json', type=Path, metavar='JSON',
