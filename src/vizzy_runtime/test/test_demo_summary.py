@@ -319,6 +319,8 @@ def test_panel_1_shows_the_frame_with_the_most_confident_correct_detections(
     assert left.has_data
     assert left.facts == {'rule': 'most confident correct', 'stamp_ns': S, 'correct': 1,
                           'wrong': 1, 'score_sum': pytest.approx(0.6), 'messages': 3}
+    # panel 4: what the recogniser saw at that moment, not the last foveated image (2 s)
+    assert result['panels']['foveated'].facts == {'frame': "panel 1's frame", 'stamp_ns': S}
 
 
 def test_panel_1_ties_go_to_the_later_frame(tmp_path: Path) -> None:

@@ -39,7 +39,8 @@ the table the map named right by the end.
    at 10 cm dashed (precision is not drawn while nothing is confirmed); on the right axis the
    number of confirmed and of established unconfirmed objects. Each value holds until the next
    map, the last one until the end of the run.
-4. The last foveated image (/foveation/image).
+4. The foveated image (/foveation/image) of panel 1's frame (the latest one stamped at or
+   before it), else the last one.
 5. The cylinders found (/cylinders: each one's footprint, an upright one a circle of its radius
    at its axis) against the ground truth, in base_link.
 6. A top view of the stereo points (/stereo/points, every cloud) and of the Sensory Ego-Sphere
@@ -56,7 +57,8 @@ from its own panel only; legends and notes sit beside or below the axes, never o
 a plot. A panel whose topics are missing or empty says so in words ("no /cylinders in the bag")
 instead of a plot. summarize_bag() returns every panel with whether it had data, its note and its
 facts: the numbers drawn (panel 1: the rule that chose the frame, its stamp, correct and wrong
-detections, their summed score; 2: the last map's counts, pairs and score; 3: the curves). Time
+detections, their summed score; 2: the last map's counts, pairs and score; 3: the curves; 4: the
+foveated image's stamp and whether it is panel 1's frame's). Time
 axes are header stamps (sim time in the simulator), in seconds from the earliest stamp of the
 messages drawn.
 """
@@ -121,7 +123,8 @@ BELOW_IN = 0.5                # legends under a panel: this far under its axes [
 @dataclass
 class Panel:
     """One panel of the page: what it shows, whether it had data, and what it says about it.
-    facts: the numbers it drew (panel 1: the rule that chose its frame; 2 and 3: the scores)."""
+    facts: the numbers it drew (panel 1: the rule that chose its frame; 2 and 3: the scores;
+    4: which foveated image)."""
     key: str
     title: str
     topics: tuple[str, ...]
@@ -202,6 +205,7 @@ class _Data:
     # (stamp, frame, x, y, z, saccade, source, ver, verg, tilt)
     gaze: list[tuple] = field(default_factory=list)
     foveated: tuple[int, str, bytes] | None = None
+    foveated_log: dict[int, int] = field(default_factory=dict)  # its stamp -> log time
     clouds: list[_Cloud] = field(default_factory=list)
     cells: _Cloud | None = None
     cylinders: list[tuple[int, str, list[tuple]]] = field(default_factory=list)
@@ -276,7 +280,9 @@ def _read(bag_dir: Path) -> _Data:
                     d.recent_images.popitem(last=False)
                 continue
             if topic == FOVEATED:
-                d.foveated = (0, typename, bytes(data))
+                fov_stamp = _image_stamp(data, typename)
+                d.foveated = (fov_stamp, typename, bytes(data))
+                d.foveated_log.setdefault(fov_stamp, log_ns)
                 continue
             msg = msgs.deserialize(data, typename)
             _take(d, topic, msg)
@@ -297,6 +303,21 @@ def _fetch_frame(d: _Data, stamp: int) -> tuple[int, str, bytes] | None:
             topics=(LEFT_IMAGE,), start_ns=log_ns, stop_ns=log_ns + 1):
         if _image_stamp(data, typename) == stamp:
             return stamp, typename, bytes(data)
+    return None
+
+
+def _fetch_foveated(d: _Data, stamp: int) -> tuple[int, str, bytes] | None:
+    """The foveated image of the left frame stamped stamp (the latest at or before it), read
+    again from the bag; None when there is none."""
+    earlier = [s for s in d.foveated_log if s <= stamp]
+    if not earlier or d.bag_dir is None:
+        return None
+    best = max(earlier)
+    log_ns = d.foveated_log[best]
+    for _topic, typename, data, _log, _pub in BagReader(d.bag_dir).messages(
+            topics=(FOVEATED,), start_ns=log_ns, stop_ns=log_ns + 1):
+        if _image_stamp(data, typename) == best:
+            return best, typename, bytes(data)
     return None
 
 
@@ -791,19 +812,25 @@ def _draw_left(ax: Any, d: _Data, p: Panel, choice: _Choice) -> None:
     p.note = '; '.join(notes)
 
 
-def _draw_foveated(ax: Any, d: _Data, p: Panel) -> None:
+def _draw_foveated(ax: Any, d: _Data, p: Panel, choice: _Choice) -> None:
     if d.foveated is None:
         p.note = _missing(d, FOVEATED) or f'{FOVEATED}: no frame'
         _empty(ax, p.note)
         return
-    msg = msgs.deserialize(d.foveated[2], d.foveated[1])
+    which, chosen = 'last frame', d.foveated
+    if choice.frame is not None and choice.rule != 'last frame':
+        at = _fetch_foveated(d, choice.frame[0])
+        if at is not None:
+            which, chosen = "panel 1's frame", at
+    msg = msgs.deserialize(chosen[2], chosen[1])
+    p.facts = {'frame': which, 'stamp_ns': chosen[0]}
     img = image_to_numpy(msg)
     h, w = img.shape[:2]
     ax.imshow(img if img.ndim == 3 else img, cmap=None if img.ndim == 3 else 'gray',
               extent=(-0.5, w - 0.5, h - 0.5, -0.5))
     ax.set_xlabel('u [px]')
     ax.set_ylabel('v [px]')
-    _title(ax, p.title, f'{FOVEATED}, last frame, t = {_t(d, _ns(msg.header.stamp)):.2f} s '
+    _title(ax, p.title, f'{FOVEATED}, {which}, t = {_t(d, _ns(msg.header.stamp)):.2f} s '
                         '(sharp at the fovea, blurred outward)')
     p.has_data = True
 
@@ -1389,7 +1416,7 @@ def summarize_bag(bag_dir: str | Path, out_path: str | Path, *,
     draw = {'left': lambda ax, dd, pp: _draw_left(ax, dd, pp, choice),
             'object_map': lambda ax, dd, pp: _draw_object_map(ax, dd, pp, top),
             'recall': lambda ax, dd, pp: _draw_recall(ax, dd, pp, top),
-            'foveated': _draw_foveated,
+            'foveated': lambda ax, dd, pp: _draw_foveated(ax, dd, pp, choice),
             'cylinders': lambda ax, dd, pp: _draw_cylinders(ax, dd, pp, top),
             'points': lambda ax, dd, pp: _draw_points(ax, dd, pp, top),
             'gaze': _draw_gaze, 'tracks': _draw_tracks}
