@@ -252,6 +252,28 @@ def render_search_set(scenes: int, seed0: int, desc: str) -> tuple[np.ndarray, n
             np.asarray([len(CLASSES)] * len(images) + labels, np.int64))
 
 
+def one_cycle_adamw(model: torch.nn.Module, lr: float, steps: int) -> tuple[Any, Any]:
+    """The trainers' optimiser (AdamW, weight decay 5e-4) and its one-cycle schedule over
+    `steps` batches."""
+    import torch
+    opt = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=5e-4)
+    return opt, torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=steps)
+
+
+def class_probabilities(model: torch.nn.Module, to_input: Any, xs: np.ndarray,
+                        num_classes: int, batch_size: int = 128) -> np.ndarray:
+    """(N, num_classes) softmax probabilities of uint8 views, in batches, in eval mode (the
+    model is left in training mode)."""
+    import torch
+    model.eval()
+    out = [np.zeros((0, num_classes), np.float32)]
+    with torch.inference_mode():
+        for i in range(0, len(xs), batch_size):
+            out.append(torch.softmax(model(to_input(xs[i:i + batch_size])), 1).numpy())
+    model.train()
+    return np.concatenate(out)
+
+
 def train_epoch(model: torch.nn.Module, opt: Any, sched: Any, x_train: np.ndarray,
                 y_train: np.ndarray, order: np.ndarray, batch_size: int,
                 to_input: Any, rng: np.random.Generator, desc: str,
@@ -491,19 +513,12 @@ def _main(argv: list[str] | None = None) -> int:
         weights[is_bg] = args.background_share / is_bg.sum()
     weights /= weights.sum()
     steps = args.epochs * ((args.train + args.batch - 1) // args.batch)
-    opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps)
+    opt, sched = one_cycle_adamw(model, args.lr, steps)
     rng = np.random.default_rng(args.seed)
 
     def evaluate(xs: np.ndarray) -> np.ndarray:
         """(N, C) class probabilities of uint8 views."""
-        model.eval()
-        out = [np.zeros((0, len(labels_out)), np.float32)]
-        with torch.inference_mode():
-            for i in range(0, len(xs), 128):
-                out.append(torch.softmax(model(to_input(xs[i:i + 128])), 1).numpy())
-        model.train()
-        return np.concatenate(out)
+        return class_probabilities(model, to_input, xs, len(labels_out), 128)
 
     def scores(probs: np.ndarray, ys: np.ndarray) -> dict[str, Any]:
         """Top-1 accuracy and background-rejection rate of the object views, the background

@@ -160,6 +160,8 @@ def train(args: argparse.Namespace, argv: list[str] | None) -> int:
         SEARCH_VAL_SEED0,
         TABLETOP_SEED0,
         TABLETOP_VAL_SEED0,
+        class_probabilities,
+        one_cycle_adamw,
         train_epoch,
     )
     from foveation_node.training.window_views import (
@@ -218,18 +220,11 @@ def train(args: argparse.Namespace, argv: list[str] | None) -> int:
                        (1.0 - share) / len(CLASSES) / np.maximum(counts[y_train], 1))
     weights /= weights.sum()
     steps = args.epochs * ((n + args.batch - 1) // args.batch)
-    opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps)
+    opt, sched = one_cycle_adamw(model, args.lr, steps)
     rng = np.random.default_rng(args.seed)
 
     def evaluate(xs: np.ndarray) -> np.ndarray:
-        model.eval()
-        out = [np.zeros((0, len(labels_out)), np.float32)]
-        with torch.inference_mode():
-            for i in range(0, len(xs), 256):
-                out.append(torch.softmax(model(to_input(xs[i:i + 256])), 1).numpy())
-        model.train()
-        return np.concatenate(out)
+        return class_probabilities(model, to_input, xs, len(labels_out), 256)
 
     t1 = time.perf_counter()
     model.train()
