@@ -293,3 +293,16 @@ def test_a_can_behind_a_low_box_is_aimed_at_over_it() -> None:
     aim = aim_point(m, can_obj, view.origin)
     assert aim is not None and aim[2] > tall_can.position[2]          # its upper part
     assert m.first_on_ray(view.origin, aim) is can_obj
+
+
+def test_fixation_at_is_the_latest_still_recent_gaze_state_at_or_before_the_stamp() -> None:
+    from vizzy_object_map.core.observations import fixation_at
+
+    a, b = np.array([1.0, 0.0, 0.5]), np.array([0.8, 0.2, 0.4])
+    states = [(1.0, a, False), (1.1, None, False), (1.2, b, True), (1.3, b, False)]
+    assert np.array_equal(fixation_at(states, 1.05, 0.25), a)
+    assert fixation_at(states, 1.15, 0.25) is None       # no fixation point (no active source)
+    assert fixation_at(states, 1.25, 0.25) is None       # the eyes were moving
+    assert np.array_equal(fixation_at(states, 1.4, 0.25), b)
+    assert fixation_at(states, 1.6, 0.25) is None        # too old to tell of this image
+    assert fixation_at(states, 0.5, 0.25) is None        # before every state

@@ -53,6 +53,7 @@ fields' (a point cloud without x, y, z), 'failed on a ...: <ExcType>' (node_tool
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Any
 
 import numpy as np
@@ -69,6 +70,7 @@ from vizzy_object_map.core.object_map import (
 from vizzy_object_map.core.observations import (
     cluster_observation,
     cylinder_observation,
+    fixation_at,
     surface_point_at,
 )
 from vizzy_runtime.convert import ConversionError, pointcloud2_to_array, stamp_seconds
@@ -347,7 +349,8 @@ class ObjectMapNode(Node):
         self._gaze_ours = False
         self._fixation: np.ndarray | None = None     # the gaze fixation, map frame
         # (stamp, fixation point in the map frame or None, in_saccade) of recent gaze states
-        self._fixations: list[tuple[float, np.ndarray | None, bool]] = []
+        self._fixations: deque[tuple[float, np.ndarray | None, bool]] = deque(
+            maxlen=FIXATIONS_KEPT)
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         self._topics[GAZE_STATE_TOPIC] = self.resolve_topic_name(GAZE_STATE_TOPIC)
         self._subs.append(self.create_subscription(
@@ -532,17 +535,11 @@ class ObjectMapNode(Node):
         active = bool(msg.active_source) and np.isfinite([p.x, p.y, p.z]).all()
         self._fixations.append((stamp_seconds(msg.header.stamp),
                                 self._fixation if active else None, self._in_saccade))
-        del self._fixations[:-FIXATIONS_KEPT]
         self.input_health.accept(self._topics[GAZE_STATE_TOPIC])
 
     def fixation_at(self, t: float) -> np.ndarray | None:
-        """Where both optical axes met at time t (the map frame): the latest gaze state at or
-        before t, if the eyes were still and it is recent; else None."""
-        for stamp, point, moving in reversed(self._fixations):
-            if stamp <= t + 1e-3:
-                ok = point is not None and not moving and t - stamp <= FIXATION_MAX_AGE_S
-                return point if ok else None
-        return None
+        """Where both optical axes met at time t (the map frame), if the eyes were still."""
+        return fixation_at(self._fixations, t, FIXATION_MAX_AGE_S)
 
     def look(self) -> None:
         """The look scheduler's turn (timer): maybe a saccade to an unnamed object."""

@@ -7,6 +7,8 @@ input can know (section "Observations" of docs/vizzy_object_map.md).
 
 from __future__ import annotations
 
+from collections.abc import Reversible
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -89,6 +91,18 @@ def surface_point_at(view: CameraView, u: float, v: float, points: FloatArray,
     return point, np.eye(3) * sigma ** 2
 
 
+def fixation_at(states: Reversible[tuple[float, FloatArray | None, bool]], t: float,
+                max_age_s: float) -> FloatArray | None:
+    """Where both optical axes met at time t (depth from vergence), from gaze states (stamp,
+    fixation point or None, eyes moving) oldest first: the latest state at or before t, if the
+    eyes were still and it is at most max_age_s old; else None."""
+    for stamp, point, moving in reversed(states):
+        if stamp <= t + 1e-3:
+            ok = point is not None and not moving and t - stamp <= max_age_s
+            return point if ok else None
+    return None
+
+
 __all__ = ['CLUSTER_SIGMA_M', 'CLUSTER_SIGMA_SHARE', 'CYLINDER_SIGMA_M', 'box_extents',
-           'cluster_observation', 'cylinder_extents', 'cylinder_observation',
+           'cluster_observation', 'cylinder_extents', 'cylinder_observation', 'fixation_at',
            'surface_point_at', 'transform_point']
