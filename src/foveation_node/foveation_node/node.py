@@ -122,6 +122,7 @@ from vizzy_runtime.node_tools import (
     Param,
     declare_parameters,
     guarded,
+    has_subscribers,
     main_for,
     publish_from_thread,
 )
@@ -488,7 +489,8 @@ class FoveationNode(Node):
             self.input_health.refuse(self._image_topic, TOO_SMALL_FOR_LEVELS, str(exc))
             return
         out = foveator.foveate(image, fixation) if self._p['space_variant'] else image
-        self._pub.publish(numpy_to_image(out, msg.encoding, header=msg.header))
+        if has_subscribers(self._pub):       # the uncompressed copy: 0.9 MB a frame at VGA
+            self._pub.publish(numpy_to_image(out, msg.encoding, header=msg.header))
 
         quality = self._p['jpeg_quality']
         jpeg = encode_jpeg(out, msg.encoding, quality)
@@ -500,13 +502,14 @@ class FoveationNode(Node):
         self.frames_published += 1
         self.input_health.accept(self._image_topic)
         self._report_bandwidth(image, msg.encoding, len(jpeg), quality, fixation)
-        self._offer_recognition(image, msg, fixation)
+        self._offer_recognition(image, out, msg, fixation)
 
     # --- recognition ----------------------------------------------------------------------------
 
-    def _offer_recognition(self, image: np.ndarray, msg: Any,
+    def _offer_recognition(self, image: np.ndarray, foveated: np.ndarray, msg: Any,
                            fixation: tuple[float, float]) -> None:
-        """Hand the frame to the worker (replacing one still waiting), at most at the rate."""
+        """Hand the frame (and its foveated image: pass 1's) to the worker, replacing one still
+        waiting, at most at the rate."""
         if self._classifier is None:
             return
         # the rate is in the images' own time (sim time in the graph, a bag's when replayed), so
@@ -517,7 +520,7 @@ class FoveationNode(Node):
             return                          # (a stamp far before the last: time was reset)
         self._last_handoff = now
         # image may view msg's buffer: keep msg alive with it
-        self._worker.put((image, msg, fixation, self._saccade_epoch))
+        self._worker.put((image, msg, fixation, self._saccade_epoch, foveated))
 
     def _recognition_foveator(self, width: int, height: int) -> Foveator:
         p = self._p
@@ -529,13 +532,18 @@ class FoveationNode(Node):
         return fov
 
     def recognise(self, image: np.ndarray, msg: Any, fixation: tuple[float, float],
-                  epoch: int) -> TwoPassResult | None:
-        """Both passes of Fig. 2.5 on one frame; publish them and maybe saccade (worker thread)."""
+                  epoch: int, foveated: np.ndarray | None = None) -> TwoPassResult | None:
+        """Both passes of Fig. 2.5 on one frame; publish them and maybe saccade (worker thread).
+        foveated: the frame foveated at fixation, if the caller has it (pass 1's image)."""
         classifier = self._classifier
         if classifier is None:
             return None
         t0 = time.perf_counter()
         rgb = image if msg.encoding == 'rgb8' else cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+        # foveation treats the channels alike: the foveated BGR frame, reordered, is pass 1's
+        first = (None if foveated is None or not self._p['space_variant']
+                 else foveated if msg.encoding == 'rgb8'
+                 else cv2.cvtColor(foveated, cv2.COLOR_BGR2RGB))
         height, width = rgb.shape[:2]
         try:
             foveator = self._recognition_foveator(width, height)
@@ -549,18 +557,20 @@ class FoveationNode(Node):
             result = TwoPassResult(found, [], np.zeros(classifier.num_classes))
         else:
             result = two_pass(classifier, rgb, fixation, foveate, self._p['top_k'],
-                              self._p['saliency_threshold'])
+                              self._p['saliency_threshold'], first_image=first,
+                              foveate_many=foveator.foveate_many
+                              if self._p['space_variant'] else None)
         self.last_recognition_ms = 1000.0 * (time.perf_counter() - t0)
         for detections in (result.first, result.second):
             publish_from_thread(self, self._det_pub,
                                 self._detection_array(msg.header, fixation, detections))
         publish_from_thread(self, self._det2d_pub, detection_2d_array(
             msg.header, result.second, result.probs_second, classifier.labels, self._p['top_k']))
-        if self._p['publish_overlay']:
+        if self._p['publish_overlay'] and has_subscribers(self._overlay_pub):
             boxes = [Box(d.box[0], d.box[1], d.box[2] - d.box[0] + 1, d.box[3] - d.box[1] + 1,
                          d.label, d.score, d.pass_index) for d in (*result.first, *result.second)]
-            drawn = draw_overlay(foveate(rgb, fixation), boxes, fixation,
-                                 float(self._p['f0']))
+            drawn = draw_overlay(foveate(rgb, fixation) if first is None else first,
+                                 boxes, fixation, float(self._p['f0']))
             publish_from_thread(self, self._overlay_pub,
                                 numpy_to_image(drawn, 'rgb8', header=msg.header))
         self.recognitions += 1

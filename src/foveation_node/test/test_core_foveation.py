@@ -155,6 +155,24 @@ def test_out_argument_is_filled(image: np.ndarray) -> None:
     assert np.array_equal(out, foveator.foveate(image, (50, 50)))
 
 
+@pytest.mark.parametrize('dtype, channels', [(np.uint8, 3), (np.uint8, 1), (np.float32, 3),
+                                             (np.uint16, 0)])
+def test_foveate_many_gives_foveate_s_images_exactly(dtype: type, channels: int) -> None:
+    grey = np.clip(pink_noise(W, H, channels=1, seed=3), 0, 255).reshape(H, W)
+    image = (grey if channels == 0 else np.repeat(grey[..., None], channels, axis=2)) \
+        .astype(dtype)
+    foveator = Foveator(W, H)
+    fixations = [(50, 50), (W - 1, 0), (120.5, 77.25), (0.0, H - 1.0)]
+    many = foveator.foveate_many(image, fixations)
+    assert len(many) == len(fixations)
+    for fixation, out in zip(fixations, many, strict=True):
+        assert out.shape == image.shape and out.dtype == image.dtype
+        assert np.array_equal(out, foveator.foveate(image, fixation)), fixation
+    assert foveator.foveate_many(image, []) == []
+    with pytest.raises(ValueError, match='outside'):
+        foveator.foveate_many(image, [(50, 50), (W + 5, 0)])
+
+
 @pytest.mark.parametrize('bad, message', [
     (np.zeros((0, 10, 3), np.uint8), 'empty'),
     (np.zeros((H, W, 3), np.int32), 'dtype'),

@@ -75,6 +75,32 @@ def test_two_pass_with_a_window_model_boxes_the_fixated_object_in_image_pixels(
     assert result.second[0].label == 'red' and result.second[0].fixation == red.centre
 
 
+def test_two_pass_given_its_first_image_and_a_batch_foveation_finds_the_same(
+        stub_model) -> None:
+    from foveation_node.core.foveation import Foveator
+    clf = _window_model(stub_model)
+    img = _scene()
+    foveator = Foveator(W, H, levels=4, f0=40.0)
+    fixation = (70.0, 52.0)
+    calls: list[tuple[float, float]] = []
+
+    def counted(im: np.ndarray, fix: tuple[float, float]) -> np.ndarray:
+        calls.append(fix)
+        return foveator.foveate(im, fix)
+
+    plain = two_pass(clf, img, fixation, counted, top_k=2)
+    assert len(calls) == 1 + 2                  # pass 1, then each of pass 1's two boxes
+    calls.clear()
+    shared = two_pass(clf, img, fixation, counted, top_k=2,
+                      first_image=foveator.foveate(img, fixation),
+                      foveate_many=foveator.foveate_many)
+    assert calls == []                          # nothing foveated one image at a time
+    assert shared.first == plain.first and shared.second == plain.second
+    np.testing.assert_array_equal(shared.probs_second, plain.probs_second)
+    with pytest.raises(ValueError, match='first_image'):
+        two_pass(clf, img, fixation, counted, first_image=img[:10])
+
+
 def test_grid_recognition_covers_the_frame_and_finds_both_patches(stub_model) -> None:
     clf = _window_model(stub_model)
     centres = grid_centres(W, H, 40)

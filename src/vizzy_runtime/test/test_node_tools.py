@@ -394,3 +394,18 @@ def test_throttled_warnings_log_once_per_kind_and_period() -> None:
     assert warn('clock', 'clock jumped back')            # another kind: its own period
     assert warn('tf', 'a short period', period_s=0.0)    # a per-call period overrides
     assert lines == ['no transform', 'clock jumped back', 'a short period']
+
+
+def test_has_subscribers_asks_the_publisher_and_counts_a_broken_one_as_read() -> None:
+    class Pub:
+        def __init__(self, count: int | None) -> None:
+            self.count = count
+
+        def get_subscription_count(self) -> int:
+            if self.count is None:
+                raise RuntimeError('destroyed')
+            return self.count
+
+    assert not node_tools.has_subscribers(Pub(0))
+    assert node_tools.has_subscribers(Pub(2))
+    assert node_tools.has_subscribers(Pub(None))     # publish() will say what is wrong

@@ -442,6 +442,16 @@ def replace_timer(node: Any, timer: Any, period_s: float, callback: Callable[[],
     return node.create_timer(period_s, callback)
 
 
+def has_subscribers(publisher: Any) -> bool:
+    """Whether anything reads publisher's topic now (a node, a bag recorder, a viewer): a node
+    skips building what nobody reads, as image_transport's lazy publishers do (an overlay, an
+    uncompressed copy). A publisher that cannot tell counts as read."""
+    try:
+        return int(publisher.get_subscription_count()) > 0
+    except Exception:  # noqa: BLE001 - destroyed meanwhile: publish() will say so
+        return True
+
+
 def publish_from_thread(node: Any, publisher: Any, msg: Any) -> None:
     """publisher.publish(msg) from a thread of the node's own (a LatestWorker, a render loop),
     where the node may be going away meanwhile: then ExternalShutdownException, not an error.
@@ -650,6 +660,7 @@ def main_for(node_factory: Callable[[], Any], *,
 
 
 __all__ = ['Check', 'CheckAll', 'LatestWorker', 'Param', 'ParameterError', 'ParameterTable',
-           'declare_parameters', 'guarded', 'main_for', 'publish_from_thread', 'replace_timer',
+           'declare_parameters', 'guarded', 'has_subscribers', 'main_for', 'publish_from_thread',
+           'replace_timer',
            'run',
            'startup_error_line']

@@ -212,15 +212,7 @@ class Foveator:
             raise ValueError(f'out must be {image.shape} {image.dtype}, '
                              f'got {out.shape} {out.dtype}')
         buf = self._buffers(channels)
-        kernels = []
-        for k, (col, row) in enumerate(self._profiles(u0, v0)):              # H_k, Eq. 2.3
-            if k == 0 and u0.is_integer() and v0.is_integer():
-                kernels.append(self._level0_window(buf, channels, int(u0), int(v0)))
-            elif channels == 1:
-                kernels.append(np.multiply(col[:, None], row[None, :], out=buf.kernel[k]))
-            else:
-                plane = np.multiply(col[:, None], row[None, :], out=buf.kernel_plane[k])
-                kernels.append(cv2.merge([plane] * channels, dst=buf.kernel[k]))
+        kernels = self._kernels(buf, channels, u0, v0)
         pyramid = self._pyramid(self._plane(image), buf)
         top = self.levels - 1
         acc = pyramid[-1]
@@ -238,6 +230,49 @@ class Foveator:
         if result is not plane:  # never expected: OpenCV reallocates only on a shape mismatch
             np.copyto(plane, result)
         return out
+
+    def foveate_many(self, image: np.ndarray, fixations: list[Fixation]) -> list[np.ndarray]:
+        """[foveate(image, f) for f in fixations], the same images, with the Gaussian pyramid
+        and the Laplacian levels built once: they do not depend on the fixation, only the
+        kernels H_k and the coarse-to-fine sum do (about half of a foveation's cost)."""
+        height, width, channels = check_image(image)
+        self._check_shape(width, height)
+        points = [check_fixation(f, width, height) for f in fixations]
+        if not points:
+            return []
+        buf = self._buffers(channels)
+        pyramid = self._pyramid(self._plane(image), buf)
+        top = self.levels - 1
+        expanded_top = cv2.pyrUp(pyramid[top + 1], dstsize=self.level_sizes[top])
+        laps = [cv2.subtract(pyramid[k], expanded_top if k == top else cv2.pyrUp(
+            pyramid[k + 1], dstsize=self.level_sizes[k])) for k in range(self.levels)]
+        depth = _CV_DEPTH[image.dtype.type]
+        out = []
+        for u0, v0 in points:
+            kernels = self._kernels(buf, channels, u0, v0)
+            acc = expanded_top
+            for k in range(top, -1, -1):
+                lap = cv2.multiply(laps[k], kernels[k], dst=buf.lap[k])         # F_k, Eq. 2.13
+                base = expanded_top if k == top else cv2.pyrUp(
+                    acc, dst=buf.up[k], dstsize=self.level_sizes[k])
+                if k > 0:
+                    acc = cv2.add(base, lap, dst=buf.expanded[k] if k == top else base)
+            result = cv2.add(base, lap, dtype=depth)
+            out.append(result.reshape(image.shape))
+        return out
+
+    def _kernels(self, buf: _Buffers, channels: int, u0: float, v0: float) -> list[np.ndarray]:
+        """H_k on each level's grid (Eq. 2.3), in buf's kernel arrays, for the fixation."""
+        kernels = []
+        for k, (col, row) in enumerate(self._profiles(u0, v0)):
+            if k == 0 and u0.is_integer() and v0.is_integer():
+                kernels.append(self._level0_window(buf, channels, int(u0), int(v0)))
+            elif channels == 1:
+                kernels.append(np.multiply(col[:, None], row[None, :], out=buf.kernel[k]))
+            else:
+                plane = np.multiply(col[:, None], row[None, :], out=buf.kernel_plane[k])
+                kernels.append(cv2.merge([plane] * channels, dst=buf.kernel[k]))
+        return kernels
 
     def _level0_window(self, buf: _Buffers, channels: int, u0: int, v0: int) -> np.ndarray:
         """H_0 for a whole-pixel fixation: a window of a kernel precomputed on a 2x canvas."""

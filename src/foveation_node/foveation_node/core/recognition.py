@@ -54,6 +54,7 @@ BACKGROUND_LABEL = 'background'                      # the reject class: no obje
 
 Box = tuple[int, int, int, int]                      # (x0, y0, x1, y1), inclusive, image px
 Foveate = Callable[[np.ndarray, tuple[float, float]], np.ndarray]
+FoveateMany = Callable[[np.ndarray, list[tuple[float, float]]], list[np.ndarray]]
 
 
 class ModelError(ValueError):
@@ -385,11 +386,16 @@ def merge_second_pass(probs: np.ndarray, top_k: int,
 
 def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, float],
              foveate: Foveate, top_k: int = DEFAULT_TOP_K,
-             threshold: float = DEFAULT_THRESHOLD, localise_second: bool = True) -> TwoPassResult:
+             threshold: float = DEFAULT_THRESHOLD, localise_second: bool = True, *,
+             first_image: np.ndarray | None = None,
+             foveate_many: FoveateMany | None = None) -> TwoPassResult:
     """Fig. 2.5 on an RGB uint8 image: pass 1 at fixation, pass 2 at each pass-1 box centre.
 
     foveate(image, (u, v)) gives the image foveated at (u, v) (same size), e.g.
     `Foveator.foveate`; pass lambda img, fix: img for a uniform-resolution sensor.
+    first_image: foveate(image, fixation) when the caller has it already (a node foveates
+    every frame at the fixation anyway); foveate_many(image, fixations): the pass-2 images at
+    once (`Foveator.foveate_many`, one pyramid for all), else foveate one by one.
     localise_second: also compute each pass-2 label's box (one more batched backward pass).
     With a reject class (Classifier.reject_class), pass 1 takes the top-k object classes and
     pass 2 keeps only labels that beat background (merge_second_pass): `second` may be empty.
@@ -399,7 +405,10 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     reject = classifier.reject_class
     k = min(int(top_k), classifier.num_classes - (reject is not None))
     fixation = (float(fixation[0]), float(fixation[1]))
-    first_image = foveate(image, fixation)
+    if first_image is None:
+        first_image = foveate(image, fixation)
+    elif first_image.shape != image.shape:
+        raise ValueError(f'first_image is {first_image.shape}, the image {image.shape}')
     probs1 = classifier.classify(first_image, [fixation])[0]
     classes1 = [int(c) for c in np.argsort(-probs1) if c != reject][:k]   # never background
     if not classes1:                                # a model that knows background only
@@ -412,7 +421,8 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
              else [d for d in looked if probs1[d.class_id] > probs1[reject]])
 
     centres = [d.centre for d in looked]
-    second_images = [foveate(image, c) for c in centres]
+    second_images = (foveate_many(image, centres) if foveate_many is not None
+                     else [foveate(image, c) for c in centres])
     probs2 = classifier.classify(second_images, centres)
     chosen = merge_second_pass(probs2, k, reject)
     if localise_second and chosen:
