@@ -92,7 +92,8 @@ OUTPUTS: list[tuple[str, str, str, RateOf, bool]] = [
     ('cylinder_detector', '/cylinders', 'active_vision_msgs/msg/CylinderArray',
      lambda p: p['sim']['rgbd_rate_hz'], True),
     ('mot_planner', '/mot/tracks', 'active_vision_msgs/msg/TrackArray',
-     lambda p: p['sim']['rate_hz'], True),
+     lambda p: min(p['mot_planner']['max_rate_hz'] or p['sim']['rate_hz'], p['sim']['rate_hz']),
+     True),
     ('object_map', '/objects', 'vision_msgs/msg/Detection3DArray',
      lambda p: 1.0 / p['object_map']['publish_period_s'], True),
 ]
@@ -101,6 +102,7 @@ RATE_PARAMS = {
     'gaze_controller': ['control_rate_hz', 'state_rate_hz'],
     'foveation': ['recognition_rate_hz'],
     'stereo_ses': ['max_rate_hz', 'cells_rate_hz'],
+    'mot_planner': ['max_rate_hz'],
     'object_map': ['publish_period_s'],
 }
 START_TIMEOUT_S = 180.0

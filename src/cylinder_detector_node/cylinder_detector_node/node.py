@@ -100,6 +100,7 @@ from vizzy_runtime.node_tools import (
     Param,
     declare_parameters,
     guarded,
+    has_subscribers,
     main_for,
     publish_from_thread,
     replace_timer,
@@ -543,7 +544,7 @@ class CylinderDetectorNode(Node):
                                              f'{"; ".join(det.messages)}')
         self._publish(msg.header, det.cylinders, det.probabilities)
         publish_from_thread(self, self._clusters_pub, cluster_array(msg.header, det))
-        if self._p['publish_overlay']:
+        if self._p['publish_overlay'] and has_subscribers(self._overlay_pub):
             self._publish_overlay(msg.header, xyz, image, det.cylinders)
         self.input_health.accept(self._cloud_topic)
         self._report(det, ms, xyz.shape)

@@ -126,6 +126,7 @@ from vizzy_runtime.node_tools import (
     main_for,
     publish_from_thread,
 )
+from vizzy_runtime.rate_gate import RateGate
 from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
 from vizzy_vision.image_checks import check_fixation
 from vizzy_vision.rays import back_project
@@ -384,7 +385,7 @@ class FoveationNode(Node):
         self._camera_size: tuple[int, int] | None = None
         self._saccade_epoch = 0                 # +1 whenever a saccade starts
         self._last_saccade = -math.inf          # node clock [s] of our last command
-        self._last_handoff = -math.inf          # stamp [s] of the last frame recognised
+        self._recognition_gate = RateGate()    # recognition_rate_hz in the frames' stamps
         self._classifier: Classifier | None = None
         self._rec_foveator: Foveator | None = None
         self.recognitions = 0
@@ -512,13 +513,10 @@ class FoveationNode(Node):
         waiting, at most at the rate."""
         if self._classifier is None:
             return
-        # the rate is in the images' own time (sim time in the graph, a bag's when replayed), so
-        # a slower machine recognises the same frames instead of fewer per second of video
-        now = stamp_seconds(msg.header.stamp)
-        period = 1.0 / self._p['recognition_rate_hz']
-        if self._last_handoff - 1.0 < now < self._last_handoff + period:
-            return                          # (a stamp far before the last: time was reset)
-        self._last_handoff = now
+        # in the images' own time: a slower machine recognises the same frames, later
+        if not self._recognition_gate.take(stamp_seconds(msg.header.stamp),
+                                           self._p['recognition_rate_hz']):
+            return
         # image may view msg's buffer: keep msg alive with it
         self._worker.put((image, msg, fixation, self._saccade_epoch, foveated))
 

@@ -411,3 +411,22 @@ def test_gaze_only_on_people_on_the_floor(graph) -> None:
     assert ((overlay == (150, 150, 150)).all(axis=2)).any()             # a grey track box
     assert not mot.set_parameters([Parameter('person_height_m', value=[2.0, 1.0])])[0].successful
     assert not mot.set_parameters([Parameter('person_check_frames', value=0)])[0].successful
+
+
+def test_max_rate_tracks_every_other_frame_of_their_stamps(graph) -> None:
+    camera, mot, executor = graph
+    assert mot.set_parameters([Parameter('max_rate_hz', value=15.0)])[0].successful
+    processed, skipped = mot.frames_processed, mot.frames_skipped
+    for frame in range(8):                                 # stamps 30 frames a second
+        seen = mot.frames_processed + mot.frames_skipped
+        msg = _image(render(frame), frame)
+        for _ in range(int(TIMEOUT / 0.2)):
+            camera.image_pub.publish(msg)
+            if wait_until(lambda: mot.frames_processed + mot.frames_skipped > seen, 0.2,
+                          spin=executor):
+                break
+    assert mot.frames_processed - processed == 4           # frames 0, 2, 4, 6
+    assert mot.frames_skipped - skipped >= 4                # (a copy sent again is skipped too)
+    assert wait_until(lambda: len(camera.tracks) >= 4, TIMEOUT, spin=executor)
+    frames = [round(m.header.stamp.nanosec * 30 / 1e9) for m in camera.tracks[-4:]]
+    assert frames == [0, 2, 4, 6]

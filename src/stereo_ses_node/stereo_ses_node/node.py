@@ -114,6 +114,7 @@ from vizzy_runtime.node_tools import (
     publish_from_thread,
     replace_timer,
 )
+from vizzy_runtime.rate_gate import RateGate
 from vizzy_runtime.ros import ExternalShutdownException, Node, QoSProfile, message
 from vizzy_runtime.tf import TransformBuffer, TransformListener
 from vizzy_vision.pointcloud import pack_rgb
@@ -363,7 +364,7 @@ class StereoSesNode(Node):
         self._awaiting_saccade_until = -math.inf      # node-clock deadline after a command
         self._frames_since_settle = 0
         self._last_command = -math.inf                # node clock [s] (sim time in the graph)
-        self._last_pair_taken = -math.inf             # stamp [s] of the last pair handed over
+        self._pair_gate = RateGate()                  # max_rate_hz in the pairs' stamps
         self._pipeline: StereoPipeline | None = None
         self._pipeline_dirty = False
         self._ses = self._new_ses()
@@ -511,11 +512,9 @@ class StereoSesNode(Node):
                 self.pairs_received += 1
                 # max_rate_hz in the images' own time (sim time in the graph): a loaded
                 # machine fuses the same pairs, later, not fewer per second of video
-                period = 1.0 / self._p['max_rate_hz']
-                if self._last_pair_taken - 1.0 < t < self._last_pair_taken + period:
-                    self.pairs_dropped += 1       # (a stamp far back: time was reset)
+                if not self._pair_gate.take(t, self._p['max_rate_hz']):
+                    self.pairs_dropped += 1
                 else:
-                    self._last_pair_taken = t
                     if self._worker.put(pair):
                         self.pairs_dropped += 1   # the worker is busy: newest pair wins
             self.images_unpaired += sum(len(gone) for gone in unpaired.values())

@@ -60,6 +60,7 @@ from vizzy_runtime.node_tools import (
     Param,
     declare_parameters,
     guarded,
+    has_subscribers,
     main_for,
     publish_from_thread,
     replace_timer,
@@ -626,10 +627,13 @@ class SimNode(Node):
         z = noisy_depth(depth, self._noise_rng if coeff > 0 else None, coeff,
                         float(self._p['rgbd_min_range_m']), float(self._p['rgbd_max_range_m']))
         header = Header(stamp=stamp, frame_id=RGBD_FRAME)
-        publish_from_thread(self, self._rgbd_image_pub, numpy_to_image(rgb, 'rgb8', header))
-        publish_from_thread(self, self._rgbd_depth_pub, numpy_to_image(z, '32FC1', header))
-        publish_from_thread(self, self._rgbd_points_pub, array_to_pointcloud2(
-            self._projector.cloud(z, rgb), header, is_dense=False))
+        # built only for readers: the depth image is 1.2 MB, the organized cloud 4.9 MB
+        for pub, make in ((self._rgbd_image_pub, lambda: numpy_to_image(rgb, 'rgb8', header)),
+                          (self._rgbd_depth_pub, lambda: numpy_to_image(z, '32FC1', header)),
+                          (self._rgbd_points_pub, lambda: array_to_pointcloud2(
+                              self._projector.cloud(z, rgb), header, is_dense=False))):
+            if has_subscribers(pub):
+                publish_from_thread(self, pub, make())
         info = self._info['rgbd']
         info.header.stamp = stamp
         publish_from_thread(self, self._rgbd_info_pub, info)
