@@ -6,7 +6,7 @@ imports, measures a window of --seconds:
 
 - per node: CPU seconds (user + system, /proc/<pid>/stat) and messages on each output topic;
   `cpu_ms_per_output` is the node's CPU over the messages of its primary output (the sim: a stereo
-  pair; gaze_controller: a control tick; foveation and mot_planner: a camera frame; stereo_ses: a
+  pair; gaze_controller: a /gaze/state; foveation and mot_planner: a camera frame; stereo_ses: a
   point cloud; cylinder_detector: an RGB-D cloud; object_map: a map), and
   `cores_at_configured_rate` that cost times the primary output's configured rate (from the
   nodes' own parameters, read through their parameter services): what the node would take at the
@@ -65,7 +65,7 @@ from vizzy_runtime.ros import (  # noqa: E402
 )
 
 Params = dict[str, dict[str, Any]]
-RateOf = Callable[[Params], float]
+RateOf = Callable[[Params], float | None]     # None: no fixed rate (on demand)
 
 # (node, topic, type, configured rate from the nodes' parameters, primary output of the node)
 OUTPUTS: list[tuple[str, str, str, RateOf, bool]] = [
@@ -76,10 +76,11 @@ OUTPUTS: list[tuple[str, str, str, RateOf, bool]] = [
     ('sim', '/joint_states', 'sensor_msgs/msg/JointState',
      lambda p: p['sim']['joint_state_rate_hz'], False),
     ('sim', '/clock', 'rosgraph_msgs/msg/Clock', lambda p: p['sim']['clock_rate_hz'], False),
-    ('gaze_controller', '/vizzy/joint_commands', 'sensor_msgs/msg/JointState',
-     lambda p: p['gaze_controller']['control_rate_hz'], True),
     ('gaze_controller', '/gaze/state', 'active_vision_msgs/msg/GazeState',
-     lambda p: p['gaze_controller']['state_rate_hz'], False),
+     lambda p: p['gaze_controller']['state_rate_hz'], True),
+    # control_rate_hz while the head moves, HOLD_RESEND_S while it holds: no fixed rate
+    ('gaze_controller', '/vizzy/joint_commands', 'sensor_msgs/msg/JointState',
+     lambda p: None, False),
     ('foveation', '/foveation/image/compressed', 'sensor_msgs/msg/CompressedImage',
      lambda p: p['sim']['rate_hz'], True),
     ('foveation', '/foveation/detections_2d', 'vision_msgs/msg/Detection2DArray',
@@ -301,15 +302,16 @@ def summarize(window: dict[str, Any], rates: Params, standby_mb: dict[str, float
             if owner != name:
                 continue
             try:
-                configured = float(rate_of(rates))
+                rate = rate_of(rates)
             except (KeyError, TypeError, ZeroDivisionError):
                 continue
+            configured = None if rate is None else float(rate)
             achieved = window['messages'][topic] / duration
-            outputs[topic] = {'configured_hz': round(configured, 3),
+            outputs[topic] = {'configured_hz': None if configured is None else round(configured, 3),
                               'achieved_hz': round(achieved, 3),
                               'achieved_rate_fraction': round(achieved / configured, 3)
-                              if configured > 0 else None}
-            if is_primary:
+                              if configured else None}
+            if is_primary and configured:
                 primary = (topic, configured)
         entry: dict[str, Any] = {'cpu_s': round(cpu, 3),
                                  'cores_measured': round(cpu / window['wall_s'], 3),

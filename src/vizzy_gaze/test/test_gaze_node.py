@@ -23,7 +23,7 @@ from vizzy_gaze.core.gaze import (
     solve_fixation,
     velocity_limits,
 )
-from vizzy_gaze.gaze_controller_node import PARAMETERS, GazeControllerNode
+from vizzy_gaze.gaze_controller_node import HOLD_RESEND_S, PARAMETERS, GazeControllerNode
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
 from vizzy_runtime.testing import publish_until, spinning, wait_until
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
@@ -179,6 +179,12 @@ def test_a_saccade_to_a_point_in_another_frame_reaches_the_ik_solution(head_and_
     for frame in (LEFT_OPTICAL_FRAME, RIGHT_OPTICAL_FRAME):
         x, y, z = poses[frame][:3, :3].T @ (point - poses[frame][:3, 3])
         assert z > 0 and abs(FX * x / z) < 2.0 and abs(FX * y / z) < 2.0
+    # held there, the same setpoint goes out again about every HOLD_RESEND_S, not every tick
+    held = len(head.commands)
+    wait_until(lambda: False, 1.0, spin=spin)                # spin for a second
+    resent = head.commands[held:]
+    assert 1 <= len(resent) <= 1.0 / HOLD_RESEND_S + 5       # 100 at control_rate_hz
+    assert all(np.array_equal(p, expected) for _, p in resent)
 
 
 def test_bad_commands_are_rejected_and_reported(head_and_controller):

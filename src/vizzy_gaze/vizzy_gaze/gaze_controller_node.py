@@ -4,7 +4,8 @@ Topics (relative names; the resolved ones at the root namespace)
   in   /gaze/command          active_vision_msgs/GazeCommand   (reliable, depth 10)
   in   /joint_states          sensor_msgs/JointState           (best effort: any publisher QoS)
   in   /tf, /tf_static        tf2_msgs/TFMessage               (vizzy_runtime.tf, latched static)
-  out  /vizzy/joint_commands  sensor_msgs/JointState (name + position setpoints, control_rate_hz)
+  out  /vizzy/joint_commands  sensor_msgs/JointState (name + position setpoints, control_rate_hz
+                              while they move; held still, every HOLD_RESEND_S)
   out  /gaze/state            active_vision_msgs/GazeState     (state_rate_hz, and per command)
   out  /diagnostics           diagnostic_msgs/DiagnosticArray  (about 1 Hz: input health)
 
@@ -24,7 +25,10 @@ What it does with a command (the ROS-free parts are in core/gaze.py):
    the main sequence and stretched so no joint exceeds max_velocity_rad_s (capped by the
    kinematics' velocity limit). Pursuit: velocity-limited first-order tracking
    (pursuit_gain, pursuit_max_velocity_rad_s). The setpoints are streamed on
-   /vizzy/joint_commands from the first accepted command on (before that the head is left alone).
+   /vizzy/joint_commands from the first accepted command on (before that the head is left alone):
+   every control tick while they move; a setpoint that stays put (a fixation held) is sent again
+   only every HOLD_RESEND_S, since a position-controlled joint holds its last target (the re-send
+   covers a lost sample) and 100 setpoints a second of the same posture cost CPU in every reader.
 
 How /gaze/state tells who won. status and status_message describe the most recent command:
 - the command was accepted: STATUS_OK; active_source/active_priority are its own. If it took the
@@ -102,6 +106,10 @@ JOINT_COMMANDS_TOPIC = 'vizzy/joint_commands'
 _VMAX = float(np.max(velocity_limits()))
 # A step of the clock between control ticks beyond this [s] (or backwards) is a jump, not a delay.
 _CLOCK_JUMP_S = 1.0
+# a setpoint that moved less than this since it was last sent [rad] is the same posture, sent
+# again only every HOLD_RESEND_S [s]
+HOLD_TOLERANCE_RAD = 1e-6
+HOLD_RESEND_S = 0.1
 
 # The node declares exactly these; each range is the descriptor's, enforced by the middleware.
 PARAMETERS: tuple[Param, ...] = (
@@ -175,6 +183,7 @@ class GazeControllerNode(Node):
         self._in_saccade = False
         self._settle_deadline = math.inf
         self._last_tick: float | None = None
+        self._last_sent: tuple[np.ndarray, float] | None = None   # setpoint and time last sent
         self._measured: np.ndarray | None = None
         self._measured_mask = np.zeros(len(self._names), dtype=bool)
         self._claim: Claim | None = None
@@ -357,9 +366,13 @@ class GazeControllerNode(Node):
                 self._p['pursuit_gain'],
                 np.minimum(self._vlimit, self._p['pursuit_max_velocity_rad_s']))
         self._last_tick = now
-        msg = JointState(name=list(self._names), position=[float(v) for v in self._setpoint])
-        msg.header.stamp = clock_now.to_msg()
-        self._command_pub.publish(msg)
+        sent = self._last_sent
+        if (sent is None or not 0.0 <= now - sent[1] < HOLD_RESEND_S
+                or np.max(np.abs(self._setpoint - sent[0])) > HOLD_TOLERANCE_RAD):
+            msg = JointState(name=list(self._names), position=[float(v) for v in self._setpoint])
+            msg.header.stamp = clock_now.to_msg()
+            self._command_pub.publish(msg)
+            self._last_sent = (self._setpoint.copy(), now)
         if self._in_saccade and self._trajectory is None and self._settled(now):
             self._in_saccade = False
             if self._claim is not None and self._claim.reached is None:
