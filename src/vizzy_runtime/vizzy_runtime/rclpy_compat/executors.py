@@ -12,7 +12,7 @@ from .exceptions import ExternalShutdownException
 from .node import Node
 
 # Cap on a wait when a timer follows a sim-time clock that does not wake the executor when it
-# moves (a node's own clock does: see Clock._on_change), since its deadline is not wall time.
+# moves (a node's own clock does: Node._on_clock_moved), since its deadline is not wall time.
 _SIM_TIME_POLL_S = 0.005
 # How often nodes look for peers using their topics with another message type.
 _TYPE_CHECK_PERIOD_S = 2.0
@@ -108,7 +108,7 @@ class Executor:
                     continue
                 wait = max(0.0, timer.time_until_next_call() / 1e9)
                 if timer.clock.ros_time_is_active:
-                    if wait > 0.0 and self.context.notify in timer.clock._on_change:
+                    if wait > 0.0 and getattr(timer.clock, 'wakes_executor', False):
                         continue        # only /clock moves it, and that wakes this executor
                     wait = min(wait, _SIM_TIME_POLL_S)
                 best = wait if best is None else min(best, wait)

@@ -105,8 +105,12 @@ MALFORMED_LOG_PERIOD_S = 5.0
 
 class Subscription:
     def __init__(self, node: Node, msg_type: type, topic: str, callback: Callable[[Any], None],
-                 qos: QoSProfile, raw: bool) -> None:
+                 qos: QoSProfile, raw: bool, direct: bool = False) -> None:
         self.msg_type = msg_type
+        # direct: the callback runs in Cyclone's listener thread as the data arrives, not in the
+        # executor (for /clock: a tick needs no executor wake-up unless a timer is due)
+        self.direct = direct
+        self._direct_lock = threading.Lock()
         self.typename = msgs.type_of(msg_type)
         self.topic = topic
         self.callback = callback
@@ -117,6 +121,8 @@ class Subscription:
         self._node = node
         self._ready = True  # take whatever arrived before the listener was attached
         self._reader = dds.RawReader(topic, self.typename, qos.to_dds(), on_data=self._on_data)
+        if direct:
+            self._dispatch_direct()       # what arrived while the reader was being made
 
     @property
     def topic_name(self) -> str:
@@ -128,7 +134,14 @@ class Subscription:
 
     def _on_data(self, _reader: dds.RawReader) -> None:
         self._ready = True
-        self._node.context.notify()
+        if not self.direct:
+            self._node.context.notify()
+        elif hasattr(self, '_reader'):    # (not while the reader is being made: __init__ takes)
+            self._dispatch_direct()
+
+    def _dispatch_direct(self) -> None:
+        with self._direct_lock:
+            self._take_and_dispatch()
 
     def get_publisher_count(self) -> int:
         return self._reader.matched_count()
@@ -143,7 +156,11 @@ class Subscription:
 
     def take_and_dispatch(self, limit: int = 256) -> int:
         """Run the callback for each waiting sample. A sample that cannot be decoded is logged and
-        skipped; an exception in the user callback is logged and does not stop the node."""
+        skipped; an exception in the user callback is logged and does not stop the node. (A
+        direct subscription dispatches in the listener thread: nothing for the executor.)"""
+        return 0 if self.direct else self._take_and_dispatch(limit)
+
+    def _take_and_dispatch(self, limit: int = 256) -> int:
         if not self._ready:
             return 0
         self._ready = False
@@ -255,7 +272,10 @@ class Node:
         self.services: list[Any] = []  # served by the executor (parameter services)
         self.clients: list[Any] = []  # their replies handled by the executor (parameter clients)
         self._clock = ROSClock()
-        self._clock._on_change.append(self.context.notify)  # sim time moved: timers may be due
+        # sim time moved: wake the executor if a timer is due (Executor._wait_timeout relies on it)
+        self._clock._on_change.append(self._on_clock_moved)
+        self._clock.wakes_executor = True
+        self._clock_seen_ns: int | None = None
         self._clock_sub: Subscription | None = None
         self.clock_refused = 0  # /clock samples that were no valid time
         self._destroyed = False
@@ -330,9 +350,9 @@ class Node:
 
     def create_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
                             qos_profile: QoSProfile | int, *, raw: bool = False,
-                            **_ignored: Any) -> Subscription:
+                            direct: bool = False, **_ignored: Any) -> Subscription:
         sub = Subscription(self, msg_type, self.resolve_topic_name(topic), callback,
-                           as_profile(qos_profile), raw)
+                           as_profile(qos_profile), raw, direct)
         with self._lock:
             self.subscriptions.append(sub)
         graph.node_changed(self)  # graph hook: republish this node's readers
@@ -667,7 +687,7 @@ class Node:
         if enabled and self._clock_sub is None:
             clock_type = msgs.get_message('rosgraph_msgs/msg/Clock')
             self._clock_sub = self.create_subscription(clock_type, '/clock', self._on_clock,
-                                                       qos_profile_clock)
+                                                       qos_profile_clock, direct=True)
         elif not enabled and self._clock_sub is not None:
             self.destroy_subscription(self._clock_sub)
             self._clock_sub = None
@@ -686,6 +706,21 @@ class Node:
                     'not a valid time; the clock keeps its last value')
             return
         self._clock.set_ros_time_override(Time.from_msg(msg.clock))
+
+    def _on_clock_moved(self) -> None:
+        """The node's clock changed (a /clock sample, in the listener thread; ROS time turned on
+        or off): wake the executor when a timer on it is due or the clock went back (timers
+        re-arm), not at every /clock tick (100 a second in the graph, each wake-up ~0.1 ms CPU)."""
+        clock = self._clock
+        now = clock._ros_time_ns if clock.ros_time_is_active else None
+        last, self._clock_seen_ns = self._clock_seen_ns, now
+        if now is None or last is None or now < last:
+            self.context.notify()
+            return
+        for timer in list(self.timers):
+            if timer.clock is clock and not timer.is_canceled() and timer._next <= now:
+                self.context.notify()
+                return
 
 
 def _apply_range(param: Parameter, rng: Any, is_float: bool) -> Any:

@@ -96,6 +96,7 @@ class Clock:
         # called (any thread) whenever what now() reads changes other than by the passing of
         # wall time: a node's clock wakes its executor with it, so sim-time timers need no polling
         self._on_change: list[Callable[[], None]] = []
+        self.wakes_executor = False     # a node's clock: its changes wake the node's executor
 
     def now(self) -> Time:
         if self.clock_type == ClockType.STEADY_TIME:
