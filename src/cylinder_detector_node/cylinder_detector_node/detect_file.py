@@ -258,10 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     load_wall, load_cpu = 1e3 * (time.perf_counter() - t0), 1e3 * (time.process_time() - c0)
     classifier = None
     if not args.no_classifier and image is not None:
-        import torch
-
         from .core.classifier import PatchClassifier
-        torch.set_num_threads(1)         # a ~60k-parameter CNN on a few patches (as the node)
         try:
             classifier = PatchClassifier.load(args.classifier_model)
         except (OSError, ValueError) as exc:

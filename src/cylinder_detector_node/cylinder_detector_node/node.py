@@ -70,7 +70,6 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import torch
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
@@ -396,8 +395,6 @@ class CylinderDetectorNode(Node):
 
         self._lock = threading.Lock()
         self._images: list[Any] = []        # the last IMAGE_BUFFER images (under _lock)
-        # a ~60k-parameter CNN on a few patches: threads only contend
-        torch.set_num_threads(1)
         self.classifier: PatchClassifier | None = None
         self.last_classified = False        # whether the last cloud went through the classifier
         self.classifier_skipped: str | None = None   # why the last cloud did not, when it was on

@@ -7,6 +7,8 @@ held-out 10000.. used in training reports); skipped without offscreen OpenGL.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -55,13 +57,40 @@ def test_stored_model_is_small_and_loads(tmp_path) -> None:
     assert DEFAULT_MODEL.is_file() and DEFAULT_MODEL.stat().st_size < 1_000_000
     clf = PatchClassifier.load()
     assert clf.meta['held_out_accuracy'] > 0.85
-    assert sum(p.numel() for p in clf.net.parameters()) < 250_000
+    assert clf.parameters < 250_000
     bad = tmp_path / 'bad.pt'
     bad.write_bytes(b'not a model')
     with pytest.raises(ValueError, match='not a cylinder classifier'):
         PatchClassifier.load(bad)
     with pytest.raises(FileNotFoundError):
         PatchClassifier.load(tmp_path / 'missing.pt')
+
+
+def test_numpy_inference_computes_what_the_pytorch_module_does(tmp_path) -> None:
+    """The node runs the network with NumPy (no PyTorch in its memory); training runs it with
+    PyTorch: the same weights give the same probabilities, and a PyTorch .pt loads too."""
+    torch = pytest.importorskip('torch')
+    from cylinder_detector_node.training.patch_net import PatchNet, classifier_of, to_tensor
+    clf = PatchClassifier.load()
+    net = PatchNet()
+    net.load_state_dict({k: torch.from_numpy(v) for k, v in clf.weights.items()}, strict=False)
+    net.eval()
+    patches = np.random.default_rng(0).integers(0, 256, (6, PATCH_SIZE, PATCH_SIZE, 3), np.uint8)
+    patches[0] = 0
+    with torch.inference_mode():
+        expected = torch.sigmoid(net(to_tensor(patches, clf.mean, clf.std))).double().numpy()
+    np.testing.assert_allclose(clf.probabilities(patches), expected, atol=1e-5)
+    again = classifier_of(net, clf.mean, clf.std)          # what training saves
+    np.testing.assert_allclose(again.probabilities(patches), expected, atol=1e-5)
+    pt = tmp_path / 'model.pt'
+    torch.save({'state_dict': net.state_dict(), 'meta': json.dumps(clf.meta)}, pt)
+    np.testing.assert_allclose(PatchClassifier.load(pt).probabilities(patches), expected,
+                               atol=1e-5)
+    npz = tmp_path / 'model.npz'
+    clf.save(npz, {'note': 'round trip'})
+    assert PatchClassifier.load(npz).meta['note'] == 'round trip'
+    np.testing.assert_allclose(PatchClassifier.load(npz).probabilities(patches),
+                               clf.probabilities(patches), atol=1e-6)
 
 
 def test_classifier_beats_fit_quality_on_held_out_patches(frames, classifier) -> None:

@@ -422,7 +422,7 @@ def test_max_rate_tracks_every_other_frame_of_their_stamps(graph) -> None:
         msg = _image(render(frame), frame)
         for _ in range(int(TIMEOUT / 0.2)):
             camera.image_pub.publish(msg)
-            if wait_until(lambda: mot.frames_processed + mot.frames_skipped > seen, 0.2,
+            if wait_until(lambda seen=seen: mot.frames_processed + mot.frames_skipped > seen, 0.2,
                           spin=executor):
                 break
     assert mot.frames_processed - processed == 4           # frames 0, 2, 4, 6

@@ -163,6 +163,7 @@ def test_timer_and_sim_time(context):
         clock_pub.publish(msg)
         want = t * 100_000_000
         assert wait_until(lambda want=want: node.get_clock().now().nanoseconds == want, 5, spin=ex)
+        ex.spin_once(0.0)   # the clock moves in the listener thread; the executor fires timers
     ex.spin_once(0.05)
     # the node's clock follows /clock and its timer fires on sim time: 0.5 s period over 3 s
     assert node.get_clock().now().nanoseconds == 3_000_000_000

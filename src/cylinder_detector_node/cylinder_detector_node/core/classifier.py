@@ -4,8 +4,12 @@ The thesis fine-tunes a SqueezeNet on patches cut out of the RGB image around ea
 cluster, so that clusters that are not cylinders never reach the (costlier, and fooled by boxes
 and spheres) Hough fit. Here a much smaller CNN of the same family (Fire-like blocks: 1x1
 squeeze, then 3x3 convolutions, global average pooling instead of fully connected layers) on
-64x64 patches, trained on simulated tabletop scenes by `train_cylinder_classifier` (the stored
-weights are in cylinder_detector_node/models/).
+64x64 patches, trained on simulated tabletop scenes by `train_cylinder_classifier` with PyTorch
+(training/patch_net.py; the stored weights are in cylinder_detector_node/models/, a NumPy .npz).
+
+Inference here is NumPy: the node runs this ~50k-parameter network on a few patches per cloud,
+and importing PyTorch for it would cost the node ~180 MB of memory (the graph's budget,
+bench/graph_budget.py). test_classifier.py checks that it computes what the PyTorch module does.
 
 Patches: the cluster's image box made square (longest side + PATCH_MARGIN on each side, centred),
 cropped with zero padding where it leaves the image, resized to PATCH_SIZE with area
@@ -18,18 +22,21 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import cv2
 import numpy as np
-import torch
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
-from torch import nn
 
 PATCH_SIZE = 64
 PATCH_MARGIN = 0.1          #: fraction of the longest side added around the box
 MODEL_DIR = Path(__file__).resolve().parents[1] / 'models'
-DEFAULT_MODEL = MODEL_DIR / 'cylinder_classifier.pt'
+DEFAULT_MODEL = MODEL_DIR / 'cylinder_classifier.npz'
+BN_EPS = 1e-5               #: BatchNorm2d's default epsilon
+#: the Fire blocks of the network, in order, and where a 2x2 max pool follows one
+FIRES = ('features.4', 'features.5', 'features.7', 'features.9')
+POOL_AFTER = ('features.5', 'features.7')
 
 
 def square_box(box: tuple[int, int, int, int],
@@ -58,90 +65,130 @@ def extract_patch(image: NDArray[np.uint8], box: tuple[int, int, int, int], size
     return cast(NDArray[np.uint8], cv2.resize(crop, (size, size), interpolation=interp))
 
 
-class Fire(nn.Module):
+Weights = dict[str, NDArray[np.float32]]
+
+
+def _conv(x: NDArray[np.float32], w: NDArray[np.float32], b: NDArray[np.float32],
+          stride: int = 1, pad: int = 0) -> NDArray[np.float32]:
+    """Conv2d of NHWC x with PyTorch's (out, in, k, k) weights."""
+    k = w.shape[-1]
+    if k == 1 and stride == 1:
+        y = x @ w[:, :, 0, 0].T
+    else:
+        xp = np.pad(x, ((0, 0), (pad, pad), (pad, pad), (0, 0))) if pad else x
+        win = sliding_window_view(xp, (k, k), axis=(1, 2))[:, ::stride, ::stride]
+        y = np.tensordot(win, w, axes=([3, 4, 5], [1, 2, 3]))      # (N, H', W', out)
+    return (y + b).astype(np.float32, copy=False)
+
+
+def _batchnorm(x: NDArray[np.float32], weights: Weights, name: str) -> NDArray[np.float32]:
+    scale = weights[f'{name}.weight'] / np.sqrt(weights[f'{name}.running_var'] + BN_EPS)
+    return x * scale + (weights[f'{name}.bias'] - weights[f'{name}.running_mean'] * scale)
+
+
+def _maxpool2(x: NDArray[np.float32]) -> NDArray[np.float32]:
+    n, h, w, c = x.shape
+    return x[:, :h // 2 * 2, :w // 2 * 2].reshape(n, h // 2, 2, w // 2, 2, c).max(axis=(2, 4))
+
+
+def _fire(x: NDArray[np.float32], weights: Weights, name: str) -> NDArray[np.float32]:
     """SqueezeNet's Fire module: 1x1 squeeze, then parallel 1x1 and 3x3 expands, concatenated."""
-
-    def __init__(self, cin: int, squeeze: int, expand: int) -> None:
-        super().__init__()
-        self.squeeze = nn.Sequential(nn.Conv2d(cin, squeeze, 1), nn.ReLU(inplace=True))
-        self.e1 = nn.Conv2d(squeeze, expand, 1)
-        self.e3 = nn.Conv2d(squeeze, expand, 3, padding=1)
-        self.bn = nn.BatchNorm2d(2 * expand)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        s = self.squeeze(x)
-        return torch.relu(self.bn(torch.cat([self.e1(s), self.e3(s)], 1)))
+    s = np.maximum(_conv(x, weights[f'{name}.squeeze.0.weight'],
+                         weights[f'{name}.squeeze.0.bias']), 0.0)
+    e = np.concatenate([_conv(s, weights[f'{name}.e1.weight'], weights[f'{name}.e1.bias']),
+                        _conv(s, weights[f'{name}.e3.weight'], weights[f'{name}.e3.bias'],
+                              pad=1)], axis=-1)
+    return np.maximum(_batchnorm(e, weights, f'{name}.bn'), 0.0)
 
 
-class PatchNet(nn.Module):
-    """A SqueezeNet-like patch classifier for 64x64 RGB: ~50k parameters, logit of 'cylinder'."""
+def patch_logits(weights: Weights, x: NDArray[np.float32]) -> NDArray[np.float32]:
+    """The network's logit of 'cylinder' for normalized (N, S, S, 3) patches: a strided 3x3
+    convolution and a max pool (64 -> 16 px, as SqueezeNet), Fire blocks with max pools (to 4x4),
+    a 1x1 convolution to one channel, averaged over the image (global average pooling)."""
+    x = _conv(x, weights['features.0.weight'], weights['features.0.bias'], stride=2, pad=1)
+    x = _maxpool2(np.maximum(_batchnorm(x, weights, 'features.1'), 0.0))
+    for name in FIRES:
+        x = _fire(x, weights, name)
+        if name in POOL_AFTER:
+            x = _maxpool2(x)
+    logits = _conv(x, weights['head.1.weight'], weights['head.1.bias'])
+    return logits.mean(axis=(1, 2))[:, 0]
 
-    def __init__(self) -> None:
-        super().__init__()
-        self.features = nn.Sequential(
-            # as SqueezeNet: a strided convolution and a max pool first (64 -> 16), Fires after
-            nn.Conv2d(3, 32, 3, stride=2, padding=1), nn.BatchNorm2d(32), nn.ReLU(inplace=True),
-            nn.MaxPool2d(2),                                                  # 16x16
-            Fire(32, 16, 32), Fire(64, 16, 48), nn.MaxPool2d(2),              # 8x8
-            Fire(96, 24, 64), nn.MaxPool2d(2),                                # 4x4
-            Fire(128, 32, 64),
-        )
-        self.head = nn.Sequential(nn.Dropout(0.2), nn.Conv2d(128, 1, 1))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.head(self.features(x)).mean(dim=(2, 3)).squeeze(1)
+def _arrays(state: dict[str, object]) -> Weights:
+    """The float tensors of a state dict (torch or numpy) as float32 arrays (BatchNorm's
+    num_batches_tracked counters left out)."""
+    out: Weights = {}
+    for key, value in state.items():
+        arr = np.asarray(value.numpy() if hasattr(value, 'numpy') else value)
+        if arr.dtype.kind == 'f':
+            out[key] = arr.astype(np.float32)
+    return out
 
 
 @dataclass
 class PatchClassifier:
-    """The trained network plus its input normalization; `probabilities` on uint8 RGB patches."""
+    """The trained network's weights plus its input normalization; `probabilities` on uint8 RGB
+    patches."""
 
-    net: PatchNet
+    weights: Weights
     mean: NDArray[np.float32]
     std: NDArray[np.float32]
     threshold: float = 0.5
     meta: dict | None = None
 
+    @property
+    def parameters(self) -> int:
+        return int(sum(v.size for k, v in self.weights.items() if not k.endswith(
+            ('running_mean', 'running_var'))))
+
     @classmethod
     def load(cls, path: str | Path | None = None) -> PatchClassifier:
-        """Weights and metadata from a .pt file (default: the packaged model). Raises
-        FileNotFoundError / ValueError with the path in the message."""
+        """Weights and metadata from a .npz file (default: the packaged model) or a PyTorch .pt
+        file of train_cylinder_classifier's (that needs PyTorch). Raises FileNotFoundError /
+        ValueError with the path in the message."""
         path = Path(path) if path else DEFAULT_MODEL
         if not path.is_file():
             raise FileNotFoundError(f'no classifier model at {path} '
                                     f'(train one with train_cylinder_classifier)')
         try:
-            blob = torch.load(path, map_location='cpu', weights_only=True)
-            net = PatchNet()
-            net.load_state_dict(blob['state_dict'])
-            meta = json.loads(blob['meta'])
+            if path.suffix == '.pt':
+                import torch  # only for a model in PyTorch's format
+                blob = torch.load(path, map_location='cpu', weights_only=True)
+                state, meta = blob['state_dict'], json.loads(blob['meta'])
+            else:
+                with np.load(path, allow_pickle=False) as npz:
+                    state = {k: npz[k] for k in npz.files if k != 'meta'}
+                    meta = json.loads(str(npz['meta']))
+            weights = _arrays(state)
+            clf = cls(weights, np.asarray(meta['mean'], np.float32),
+                      np.asarray(meta['std'], np.float32), float(meta.get('threshold', 0.5)), meta)
+            clf.probabilities(np.zeros((1, PATCH_SIZE, PATCH_SIZE, 3), np.uint8))  # all there?
         except Exception as exc:   # a corrupt or foreign file: one clear message
             raise ValueError(f'{path}: not a cylinder classifier model '
                              f'({type(exc).__name__}: {exc})') from exc
-        net.eval()
-        return cls(net, np.asarray(meta['mean'], np.float32), np.asarray(meta['std'], np.float32),
-                   float(meta.get('threshold', 0.5)), meta)
+        return clf
 
     def save(self, path: str | Path, meta: dict) -> None:
+        """As a .npz of float16 weights and the metadata (JSON)."""
         meta = dict(meta, mean=[float(v) for v in self.mean], std=[float(v) for v in self.std],
                     threshold=self.threshold, patch_size=PATCH_SIZE, patch_margin=PATCH_MARGIN)
-        sd = {k: v.half() if v.is_floating_point() else v for k, v in self.net.state_dict().items()}
-        torch.save({'state_dict': sd, 'meta': json.dumps(meta)}, path)
+        arrays: dict[str, Any] = {k: v.astype(np.float16) for k, v in self.weights.items()}
+        arrays['meta'] = np.array(json.dumps(meta))
+        with open(path, 'wb') as f:
+            np.savez_compressed(f, **arrays)
 
-    def to_tensor(self, patches: NDArray[np.uint8]) -> torch.Tensor:
-        x = torch.from_numpy(np.ascontiguousarray(patches, dtype=np.float32)).permute(0, 3, 1, 2)
-        x = x / 255.0
-        mean = torch.from_numpy(self.mean)[None, :, None, None]
-        std = torch.from_numpy(self.std)[None, :, None, None]
-        return (x - mean) / std
+    def normalize(self, patches: NDArray[np.uint8]) -> NDArray[np.float32]:
+        """(N, S, S, 3) uint8 RGB -> the network's input: [0, 1], minus mean, over std."""
+        x = np.asarray(patches, dtype=np.float32) / np.float32(255.0)
+        return ((x - self.mean) / self.std).astype(np.float32, copy=False)
 
     def probabilities(self, patches: NDArray[np.uint8]) -> NDArray[np.float64]:
         """P(cylinder) of each (N, S, S, 3) uint8 RGB patch, one batched forward pass."""
         if len(patches) == 0:
             return np.zeros(0)
-        with torch.inference_mode():
-            logits = self.net(self.to_tensor(patches).float())
-        return torch.sigmoid(logits.float()).double().numpy()
+        logits = patch_logits(self.weights, self.normalize(patches)).astype(np.float64)
+        return 1.0 / (1.0 + np.exp(-logits))
 
     def classify(self, image: NDArray[np.uint8],
                  boxes: list[tuple[int, int, int, int]]) -> NDArray[np.float64]:

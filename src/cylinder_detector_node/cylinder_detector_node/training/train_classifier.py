@@ -110,9 +110,10 @@ def _main(argv: list[str] | None = None) -> int:
     import torch
     from tqdm import tqdm
 
-    from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier, PatchNet
+    from cylinder_detector_node.core.classifier import DEFAULT_MODEL
 
     from .patch_data import MIN_PURITY
+    from .patch_net import PatchNet, classifier_of, to_tensor
 
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
@@ -133,22 +134,22 @@ def _main(argv: list[str] | None = None) -> int:
           f'{len(xte)} held-out ({yte.mean():.0%}); rendering {render_s:.0f} s', flush=True)
     mean = (xtr.reshape(-1, 3) / 255.0).mean(axis=0).astype(np.float32)
     std = (xtr.reshape(-1, 3) / 255.0).std(axis=0).astype(np.float32)
-    clf = PatchClassifier(PatchNet(), mean, std)
+    net = PatchNet()
     x_all = np.concatenate([xtr, xtr[:, :, ::-1]])       # mirror augmentation (the thesis's), uint8
     y_all = torch.from_numpy(np.concatenate([ytr, ytr])).float()
-    x_test = clf.to_tensor(xte)
+    x_test = to_tensor(xte, mean, std)
     pos = float(y_all.mean())
     loss_fn = torch.nn.BCEWithLogitsLoss(pos_weight=torch.tensor((1 - pos) / max(pos, 1e-6)))
-    opt = torch.optim.AdamW(clf.net.parameters(), lr=args.lr, weight_decay=1e-4)
+    opt = torch.optim.AdamW(net.parameters(), lr=args.lr, weight_decay=1e-4)
     steps = args.epochs * ((len(x_all) + args.batch - 1) // args.batch)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps)
     gen = torch.Generator().manual_seed(0)
 
     def held_out() -> tuple[float, np.ndarray]:
-        clf.net.eval()
+        net.eval()
         with torch.inference_mode():
-            p = torch.sigmoid(clf.net(x_test)).numpy()
-        clf.net.train()
+            p = torch.sigmoid(net(x_test)).numpy()
+        net.train()
         return float(((p >= 0.5) == yte).mean()), p
 
     for epoch in range(args.epochs):
@@ -158,11 +159,11 @@ def _main(argv: list[str] | None = None) -> int:
                    unit='batch', leave=False)
         for i in bar:
             idx = perm[i:i + args.batch]
-            xb = clf.to_tensor(x_all[idx.numpy()])
+            xb = to_tensor(x_all[idx.numpy()], mean, std)
             # brightness / contrast jitter: the real camera is not the renderer
             xb = xb * (1 + 0.2 * (torch.rand(len(idx), 1, 1, 1, generator=gen) - 0.5)) \
                 + 0.3 * (torch.rand(len(idx), 1, 1, 1, generator=gen) - 0.5)
-            loss = loss_fn(clf.net(xb), y_all[idx])
+            loss = loss_fn(net(xb), y_all[idx])
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -177,6 +178,8 @@ def _main(argv: list[str] | None = None) -> int:
     acc_fit = max(float(((qte >= t) == yte).mean()) for t in np.linspace(0, 1, 101))
     out = args.out or DEFAULT_MODEL
     out.parent.mkdir(parents=True, exist_ok=True)
+    net.eval()
+    clf = classifier_of(net, mean, std)
     clf.save(out, {
         'trained': datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds'),
         'train_scenes': args.scenes, 'held_out_scenes': args.held_out,
@@ -186,7 +189,7 @@ def _main(argv: list[str] | None = None) -> int:
         'held_out_average_precision': round(ap_cnn, 4),
         'fit_quality_average_precision': round(ap_fit, 4),
         'fit_quality_best_accuracy': round(acc_fit, 4),
-        'parameters': int(sum(p.numel() for p in clf.net.parameters())),
+        'parameters': int(sum(p.numel() for p in net.parameters())),
     })
     print(f'train_classifier: held-out accuracy {acc:.3f} (Eq. 4.4 fit quality at its best '
           f'threshold: {acc_fit:.3f}); average precision {ap_cnn:.3f} vs {ap_fit:.3f}; saved {out} '
