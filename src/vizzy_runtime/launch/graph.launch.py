@@ -65,6 +65,8 @@ def generate_launch_description() -> LaunchDescription:
     group = [PushROSNamespace(LaunchConfiguration('namespace')), SetRemap('/clock', 'clock'),
              SetRemap('/tf', 'tf'), SetRemap('/tf_static', 'tf_static')]
     params_dir = tempfile.mkdtemp(prefix='vizzy_launch_')
+    # the graph's environment defaults; the caller's own environment wins
+    env = {str(k): os.environ.get(str(k), str(v)) for k, v in (graph.get('env') or {}).items()}
     for entry in graph['nodes']:
         share = get_package_share_directory(entry['package'])
         parameters = [_namespace_proof(os.path.join(share, rel), params_dir)
@@ -81,6 +83,7 @@ def generate_launch_description() -> LaunchDescription:
             respawn['respawn_max_retries'] = int(entry['respawn_max_retries'])
         group.append(Node(
             package=entry['package'],
+            additional_env=env,
             executable=entry['executable'],
             name=entry['name'],
             namespace=entry.get('namespace') or None,

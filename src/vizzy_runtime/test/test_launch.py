@@ -121,6 +121,21 @@ def test_a_namespaced_graph_moves_every_node(tmp_path):
     assert build_parser().parse_args(['launch', '--namespace', '/head2']).namespace == '/head2'
 
 
+def test_graph_env_sets_defaults_the_caller_overrides(tmp_path, monkeypatch):
+    graph = load_graph(default_graph_file())
+    assert graph.env['OMP_NUM_THREADS'] == '1' and graph.env['OPENBLAS_NUM_THREADS'] == '1'
+    monkeypatch.delenv('OMP_NUM_THREADS', raising=False)
+    monkeypatch.setenv('OPENBLAS_NUM_THREADS', '4')           # the caller's own value wins
+    launcher = Launcher(graph)
+    assert launcher.env['OMP_NUM_THREADS'] == '1' and launcher.env['OPENBLAS_NUM_THREADS'] == '4'
+    assert "additional_env=env" in (Path(default_graph_file()).parent.parent / 'launch'
+                                    / 'graph.launch.py').read_text()
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('env: {OMP_NUM_THREADS: [1]}\nnodes: []\n')
+    with pytest.raises(LaunchError, match='env must map variable names'):
+        load_graph(bad)
+
+
 def test_bad_graphs_are_clear_errors(tmp_path):
     with pytest.raises(LaunchError, match='no such file'):
         load_graph(tmp_path / 'none.yaml')

@@ -94,6 +94,8 @@ class Graph:
     respawn: bool = False
     respawn_delay: float = 0.0
     respawn_standby: bool = False
+    # environment defaults for every node (the caller's own environment wins)
+    env: dict[str, str] = field(default_factory=dict)
 
     def respawns(self, spec: NodeSpec) -> tuple[bool, float]:
         return (self.respawn if spec.respawn is None else spec.respawn,
@@ -177,7 +179,13 @@ def load_graph(path: str | Path) -> Graph:
             use_sim_time=entry.get('use_sim_time'), **respawn_fields(f'node {name}', entry)))
     graph_wide = respawn_fields('graph',
                                 {k: v for k, v in data.items() if k != 'respawn_max_retries'})
-    return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)), **graph_wide)
+    env = data.get('env') or {}
+    if not isinstance(env, dict) or not all(isinstance(k, str) and k and '=' not in k
+                                            and isinstance(v, (str, int, float))
+                                            and not isinstance(v, bool) for k, v in env.items()):
+        raise LaunchError(f'graph file {p}: env must map variable names to strings or numbers')
+    return Graph(nodes=nodes, use_sim_time=bool(data.get('use_sim_time', False)),
+                 env={k: str(v) for k, v in env.items()}, **graph_wide)
 
 
 def find_entry_point(package: str, executable: str) -> importlib.metadata.EntryPoint:
@@ -306,7 +314,7 @@ class Launcher:
         self._params_dir = tempfile.TemporaryDirectory(prefix='vizzy_launch_',
                                                        ignore_cleanup_errors=True)
         # nodes of the bundled runtime bind their receive sockets to 127.0.0.1 (loopback.py)
-        self.env = dict(loopback.preload_env({**os.environ, **(env or {}),
+        self.env = dict(loopback.preload_env({**graph.env, **os.environ, **(env or {}),
                                               'PYTHONUNBUFFERED': '1'}))
         self.grace_s = grace_s
         self.output = output or sys.stdout
