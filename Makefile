@@ -8,19 +8,22 @@ ROS_INPUTS := $(SETUP_INPUTS) requirements-ros.txt scripts/setup_ros.sh scripts/
 	msgs/CMakeLists.txt msgs/package.xml $(wildcard msgs/msg/*.msg) \
 	$(wildcard src/vizzy_runtime/vizzy_runtime/interfaces/*/msg/*.msg)
 
-.PHONY: setup demo test lint bench clean
+.PHONY: setup setup-ros demo test lint bench clean
 
+# .venv: what the demo, the benches and the bundled-runtime tests need; .venv-ros: the real-rclpy
+# tier on top of it (make test, make setup-ros).
 setup: $(SETUP_STAMP) $(ROS_STAMP)
+setup-ros: $(ROS_STAMP)
 
 $(SETUP_STAMP): $(SETUP_INPUTS)
 	bash scripts/setup.sh
 	touch $@
 
-$(ROS_STAMP): $(ROS_INPUTS)
+$(ROS_STAMP): $(ROS_INPUTS) $(SETUP_STAMP)
 	bash scripts/setup_ros.sh
 	mkdir -p $(dir $@) && touch $@
 
-demo: setup
+demo: $(SETUP_STAMP)
 	$(PY) -m vizzy_runtime.demo
 
 # Two tiers: everything on the bundled runtime, then the live-node, whole-graph and mixed-vendor

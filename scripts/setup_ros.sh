@@ -40,6 +40,20 @@ PY="$PWD/$VENV/bin/python"
 "$PY" -c 'import sysconfig, os, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
   || skip "building the message packages needs Python's headers (apt-get install python3-dev)"
 
+# Share .venv's packages (torch, Open3D, MuJoCo, ...: about 3 GB) rather than install them a second
+# time: a .pth line puts .venv's site-packages after .venv-ros's own on sys.path (the ROS wheels and
+# the workspace packages installed here come first), and pip counts what it finds there as
+# installed. Only with the same Python version (compiled packages are built for one).
+own_site=$("$PY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+share="$own_site/_vizzy_shared_venv.pth"
+rm -f "$share"
+if [ -x .venv/bin/python ] && [ "$(.venv/bin/python -c 'import sys; print(sys.version_info[:2])')" \
+    = "$("$PY" -c 'import sys; print(sys.version_info[:2])')" ]; then
+  base_site=$(.venv/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+  echo "setup-ros: sharing the packages of .venv ($base_site)"
+  echo "$base_site" > "$share"
+fi
+
 echo "setup-ros: installing pinned dependencies + ROS 2 Jazzy wheels (requirements.txt, requirements-ros.txt)"
 "$PY" -m pip install --quiet --disable-pip-version-check -r requirements.txt -r requirements-ros.txt
 
