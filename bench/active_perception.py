@@ -16,7 +16,8 @@ Configurations, on the same seeds:
 - deployed: the shipped graph;
 - uniform: no space-variant processing, the same nodes and gaze policy: recognition on the
   unfoveated frame (foveation space_variant false), Cartesian stereo at 512 x 512 receptive
-  fields, full-frame HOG every frame (mot_planner full_frame_period 1, s_max 1);
+  fields, full-frame HOG on every frame the tracker takes (mot_planner full_frame_period 1,
+  s_max 1; both configurations track at the graph's max_rate_hz, 7.5 Hz);
 - random_gaze: every gaze source off; this bench sends a saccade to a random direction in the
   head's reach every RANDOM_PERIOD_S (the lower bound for any gaze policy);
 - fixed_gaze: every gaze source off; the head keeps its start posture.
