@@ -73,8 +73,9 @@ OUTPUTS: list[tuple[str, str, str, RateOf, bool]] = [
      lambda p: p['sim']['rate_hz'], True),
     ('sim', '/vizzy/rgbd/camera_info', 'sensor_msgs/msg/CameraInfo',
      lambda p: p['sim']['rgbd_rate_hz'], False),
+    # at joint_state_rate_hz and at every stereo pair's stamp (where the two do not coincide)
     ('sim', '/joint_states', 'sensor_msgs/msg/JointState',
-     lambda p: p['sim']['joint_state_rate_hz'], False),
+     lambda p: p['sim']['joint_state_rate_hz'] + p['sim']['rate_hz'], False),
     ('sim', '/clock', 'rosgraph_msgs/msg/Clock', lambda p: p['sim']['clock_rate_hz'], False),
     ('gaze_controller', '/gaze/state', 'active_vision_msgs/msg/GazeState',
      lambda p: p['gaze_controller']['state_rate_hz'], True),
@@ -196,14 +197,17 @@ def read_rates(node: BudgetNode, launcher: Launcher, timeout_s: float = 20.0) ->
         client = AsyncParameterClient(node, f'/{name}')
         if not client.wait_for_services(timeout_s):
             raise RuntimeError(f'node /{name}: no parameter services within {timeout_s:g} s')
-        future = client.get_parameters(params)
-        deadline = time.monotonic() + timeout_s
-        while not future.done() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        if not future.done():
-            raise RuntimeError(f'node /{name}: no reply to get_parameters within {timeout_s:g} s')
-        out[name] = {p: parameter_value_to_python(v)
-                     for p, v in zip(params, future.result().values, strict=True)}
+        out[name] = {}
+        for param in params:     # one by one: a node without the parameter answers nothing
+            future = client.get_parameters([param])
+            deadline = time.monotonic() + timeout_s
+            while not future.done() and time.monotonic() < deadline:
+                time.sleep(0.05)
+            if not future.done():
+                raise RuntimeError(f'node /{name}: no reply to get_parameters within '
+                                   f'{timeout_s:g} s')
+            values = future.result().values
+            out[name][param] = parameter_value_to_python(values[0]) if values else None
     return out
 
 

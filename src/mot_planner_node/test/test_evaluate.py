@@ -319,3 +319,25 @@ def test_bad_options_are_one_line(capsys) -> None:
     assert evaluate.main(['.', '--horizon', '0', '--quiet']) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and 'depth must be in [1, 8]' in err
+
+
+def test_the_default_plans_by_iterations_not_by_the_clock(tmp_path: Path, capsys,
+                                                          monkeypatch) -> None:
+    """Without options a run is the same on any machine at any load (a fixed number of MCTS
+    runs per frame, by protocol); --wall-clock plans as the node does, for --budget-ms."""
+    seq = moving_sequence(tmp_path, 12)
+    monkeypatch.setattr(evaluate, 'make_detector', lambda spec, args: MovingOracle())
+    argv = [str(seq), '--quiet', '--no-timing', '--s-max', '0.4', '--k-max', '1']
+    outs = []
+    for _ in range(2):
+        assert evaluate.main(argv) == 0
+        outs.append(capsys.readouterr().out.strip().splitlines()[-1])
+    assert outs[0] == outs[1]
+    config = json.loads(outs[0])['config']
+    assert config['budget_iterations'] == evaluate.DEFAULT_BUDGET_ITERATIONS['deployed']
+    assert evaluate.main(argv + ['--protocol', 'thesis']) == 0
+    config = json.loads(capsys.readouterr().out.strip().splitlines()[-1])['config']
+    assert config['budget_iterations'] == evaluate.DEFAULT_BUDGET_ITERATIONS['thesis']
+    args = evaluate.parser().parse_args([str(seq), '--wall-clock', '--budget-ms', '7'])
+    planner = evaluate.tracker_config(args, 'planner').planner
+    assert planner.budget_ms == 7.0 and planner.max_iterations is None

@@ -190,6 +190,47 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell's background job starts
 
 
+def test_nodes_end_when_their_launcher_is_killed(tmp_path):
+    """SIGKILL (or the OOM killer) gives the launcher no chance to stop its nodes: they end on
+    their own (PR_SET_PDEATHSIG), standbys too, instead of running on orphaned."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from mixed_support import graph_subset
+    graph_file = graph_subset(tmp_path / 'graph.yaml', ['gaze_controller'], use_sim_time=False)
+    proc = subprocess.Popen([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', str(graph_file)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    pids: list[int] = []
+    lines: list[str] = []
+    watchdog = threading.Timer(180, proc.kill)
+    watchdog.start()
+    try:
+        for line in proc.stdout:
+            lines.append(line)
+            pids += [int(p) for p in re.findall(r'process started with pid \[(\d+)\]', line)]
+            if any('[gaze_controller-' in ln and 'INFO' in ln and 'launch' not in ln
+                   for ln in lines):
+                break
+        assert len(pids) == 1 and _pid_running(pids[0]), ''.join(lines)
+        proc.kill()
+        proc.wait(timeout=30)
+        deadline = time.monotonic() + 60
+        while _pid_running(pids[0]) and time.monotonic() < deadline:
+            time.sleep(0.2)
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            proc.kill()
+        for pid in pids:
+            if _pid_running(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert not _pid_running(pids[0]), f'node {pids[0]} outlived its SIGKILLed launcher'
+
+
+def test_end_with_launcher_arms_only_under_a_launcher() -> None:
+    from vizzy_runtime.process_exit import LAUNCHER_PID_ENV, end_with_launcher
+    assert not end_with_launcher({})
+    assert not end_with_launcher({LAUNCHER_PID_ENV: 'x'})
+
+
 @pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
 def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
     """What timeout, systemd, docker stop, CI cancels and `kill -INT` send: no node may outlive

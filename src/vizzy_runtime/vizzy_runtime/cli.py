@@ -40,6 +40,8 @@ def _die(message: str, code: int = 2) -> int:
 
 def cmd_run(ns: argparse.Namespace) -> int:
     from .launcher import find_entry_point
+    from .process_exit import end_with_launcher
+    end_with_launcher()                  # started by `vizzy launch`: end when it does
     ep = find_entry_point(ns.package, ns.executable)
     main = ep.load()
     if ns.standby:

@@ -37,6 +37,7 @@ from typing import Any, TextIO
 import yaml
 
 from . import loopback
+from .process_exit import LAUNCHER_PID_ENV
 
 
 class LaunchError(ValueError):
@@ -315,7 +316,8 @@ class Launcher:
                                                        ignore_cleanup_errors=True)
         # nodes of the bundled runtime bind their receive sockets to 127.0.0.1 (loopback.py)
         self.env = dict(loopback.preload_env({**graph.env, **os.environ, **(env or {}),
-                                              'PYTHONUNBUFFERED': '1'}))
+                                              'PYTHONUNBUFFERED': '1',
+                                              LAUNCHER_PID_ENV: str(os.getpid())}))
         self.grace_s = grace_s
         self.output = output or sys.stdout
         self.procs: dict[str, subprocess.Popen[str]] = {}

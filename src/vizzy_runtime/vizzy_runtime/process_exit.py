@@ -15,12 +15,37 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import ctypes
 import os
+import signal
 import sys
 import threading
 import traceback
 from collections.abc import Callable
 from typing import NoReturn
+
+#: set by `vizzy launch` in each node's environment: the pid of the launcher
+LAUNCHER_PID_ENV = 'VIZZY_LAUNCHER_PID'
+_PR_SET_PDEATHSIG = 1
+
+
+def end_with_launcher(environ: dict[str, str] | None = None) -> bool:
+    """A node (or a standby) started by `vizzy launch` ends when its launcher does, however that
+    ends (SIGKILL, the OOM killer, a crash): Linux then sends it SIGTERM (PR_SET_PDEATHSIG), which
+    the node takes as it takes a Ctrl-C. If the launcher is already gone, SIGTERM now. Elsewhere
+    (no launcher, not Linux) nothing happens. True if armed."""
+    raw = (os.environ if environ is None else environ).get(LAUNCHER_PID_ENV, '')
+    if not raw.isdigit() or not sys.platform.startswith('linux'):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0) != 0:
+            return False
+    except (OSError, AttributeError):
+        return False
+    if os.getppid() != int(raw):       # it died before prctl: no signal will come
+        os.kill(os.getpid(), signal.SIGTERM)
+    return True
 
 
 def exit_code(exc: SystemExit) -> int:
