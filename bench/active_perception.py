@@ -56,8 +56,13 @@ os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph  # noqa: E402
-from vizzy_runtime.lockstep import Conductor, process_cpu_seconds  # noqa: E402
+from vizzy_runtime.launcher import (  # noqa: E402
+    Launcher,
+    default_graph_file,
+    load_graph,
+    parse_parameter_sets,
+)
+from vizzy_runtime.lockstep import Conductor  # noqa: E402
 from vizzy_runtime.ros import (  # noqa: E402
     Context,
     Node,
@@ -181,18 +186,6 @@ class BenchNode(Node):
                 self.run.truth_boxes[self._stamp_ns(msg)] = msg
 
 
-def parse_sets(items: list[str]) -> dict[str, dict[str, Any]]:
-    """--set node.param=value (value read as YAML) -> {node: {param: value}}."""
-    out: dict[str, dict[str, Any]] = {}
-    for item in items:
-        key, sep, value = item.partition('=')
-        node, dot, param = key.partition('.')
-        if not (sep and dot and node and param):
-            raise ValueError(f'--set {item!r}: expected node.parameter=value')
-        out.setdefault(node, {})[param] = yaml.safe_load(value)
-    return out
-
-
 def graph_file(out_dir: Path, scene: str, config: str, seed: int,
                extra: dict[str, dict[str, Any]] | None = None) -> Path:
     """The shipped graph, lock-stepped, without respawns or standbys, with the configuration's
@@ -295,15 +288,6 @@ def wait_for_graph(node: BenchNode, conductor: Conductor, launcher: Launcher) ->
                        f'{START_TIMEOUT_S:g} s (see the launch log)')
 
 
-def cpu_by_node(launcher: Launcher) -> dict[str, float]:
-    out = {}
-    for name, proc in launcher.procs.items():
-        cpu = process_cpu_seconds(proc.pid)
-        if cpu is not None:
-            out[name] = cpu
-    return out
-
-
 def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
             out_dir: Path, extra: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """Launch, step through `seconds` of sim time sampling the figures, stop; the run's
@@ -324,7 +308,7 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
             wait_for_graph(node, conductor, launcher)
             with node.lock:
                 node.run = run
-            cpu0 = cpu_by_node(launcher)
+            cpu0 = launcher.cpu_seconds()
             start_wall = time.monotonic()
             next_sample = [0.0]
             next_random = [0.5]
@@ -340,7 +324,7 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
                     random_saccade(node, rng)
                 if t + 1e-9 >= next_sample[0]:
                     next_sample[0] += SAMPLE_PERIOD_S
-                    cpu = cpu_by_node(launcher)
+                    cpu = launcher.cpu_seconds()
                     used = {n: cpu.get(n, 0.0) - cpu0.get(n, 0.0) for n in cpu0}
                     with node.lock:
                         sample = {'t': round(t, 3), 'saccades': run.saccades,
@@ -352,7 +336,7 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
 
             conductor.step_to(seconds, on_tick=on_tick)
             wall = time.monotonic() - start_wall
-            cpu = cpu_by_node(launcher)
+            cpu = launcher.cpu_seconds()
         finally:
             with node.lock:
                 node.run = None
@@ -533,7 +517,7 @@ def main() -> int:
     if ns.seconds <= 0:
         parser.error('--seconds must be positive')
     try:
-        extra = parse_sets(ns.set)
+        extra = parse_parameter_sets(ns.set)
     except ValueError as exc:
         parser.error(str(exc))
     plan = [(scene, config, seed) for scene in ns.scenes for config in ns.configs

@@ -12,8 +12,9 @@
   makes (pyramid, Laplacians, kernel products, coarse-to-fine sum) back to back on preallocated
   buffers with the kernels ready; `fovea_cost_vs_opencv_calls` = foveate's cost over theirs (what
   Python and the kernels' computation add). memory_bound_fps_640x480: the bytes those calls read
-  and write per frame over this machine's copy bandwidth (np.copyto of 64 MB): the rate no
-  implementation of the same calls can beat; `fovea_cost_vs_memory_bound`.
+  and write per frame over this machine's DRAM copy bandwidth (np.copyto of 64 MB), what
+  streaming them through memory would allow; an estimate, not a strict bound (the coarse levels
+  stay in the caches, so the calls can beat it); `fovea_cost_vs_memory_bound`.
 - reference_float64_fps_640x480: `foveate_reference`, the tests' float64 ground truth (not a
   speed baseline: printed to show what the correctness check costs).
 - logpolar_fps: `LogPolarRetina(640, 480, 200, 200).to_cortex` (Gaussian RFs) of the same

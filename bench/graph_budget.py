@@ -52,15 +52,20 @@ os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 
 import yaml  # noqa: E402
 
-from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph  # noqa: E402
+from vizzy_runtime.launcher import (  # noqa: E402
+    Launcher,
+    default_graph_file,
+    load_graph,
+    parse_parameter_sets,
+)
 from vizzy_runtime.lockstep import Conductor, process_cpu_seconds  # noqa: E402
-from vizzy_runtime.rclpy_compat.parameter import parameter_value_to_python  # noqa: E402
-from vizzy_runtime.rclpy_compat.parameter_client import AsyncParameterClient  # noqa: E402
 from vizzy_runtime.ros import (  # noqa: E402
+    AsyncParameterClient,
     Context,
     Node,
     SingleThreadedExecutor,
     message,
+    parameter_value_to_python,
     qos_profile_sensor_data,
 )
 
@@ -133,18 +138,6 @@ class BudgetNode(Node):
     def snapshot(self) -> dict[str, int]:
         with self.lock:
             return dict(self.counts)
-
-
-def parse_sets(items: list[str]) -> Params:
-    """--set node.param=value (value read as YAML) -> {node: {param: value}}."""
-    out: Params = {}
-    for item in items:
-        key, sep, value = item.partition('=')
-        node, dot, param = key.partition('.')
-        if not (sep and dot and node and param):
-            raise ValueError(f'--set {item!r}: expected node.parameter=value')
-        out.setdefault(node, {})[param] = yaml.safe_load(value)
-    return out
 
 
 def graph_file(out_dir: Path, lockstep: bool, standby: bool, extra: Params) -> Path:
@@ -244,15 +237,6 @@ def wait_for_standbys(launcher: Launcher) -> dict[str, float]:
     return {n: round(process_cpu_seconds(p.pid) or 0.0, 2) for n, p in launcher.standbys.items()}
 
 
-def cpu_by_node(launcher: Launcher) -> dict[str, float]:
-    out = {}
-    for name, proc in launcher.procs.items():
-        cpu = process_cpu_seconds(proc.pid)
-        if cpu is not None:
-            out[name] = cpu
-    return out
-
-
 def measure(node: BudgetNode, launcher: Launcher, seconds: float,
             conductor: Conductor | None) -> dict[str, Any]:
     """CPU, messages and memory over one window: `seconds` of wall time, or of simulated time
@@ -265,7 +249,7 @@ def measure(node: BudgetNode, launcher: Launcher, seconds: float,
             if mem is not None:
                 peak[name] = [max(peak[name][0], mem[0]), max(peak[name][1], mem[1])]
 
-    cpu0, counts0, idle0 = cpu_by_node(launcher), node.snapshot(), machine_cpu()
+    cpu0, counts0, idle0 = launcher.cpu_seconds(), node.snapshot(), machine_cpu()
     t0 = time.monotonic()
     if conductor is None:
         while time.monotonic() - t0 < seconds:
@@ -287,7 +271,7 @@ def measure(node: BudgetNode, launcher: Launcher, seconds: float,
         duration = seconds
     wall = time.monotonic() - t0
     sample_memory()
-    cpu1, counts1, idle1 = cpu_by_node(launcher), node.snapshot(), machine_cpu()
+    cpu1, counts1, idle1 = launcher.cpu_seconds(), node.snapshot(), machine_cpu()
     return {'duration_s': duration, 'wall_s': wall,
             'cpu_s': {n: cpu1.get(n, 0.0) - cpu0.get(n, 0.0) for n in cpu0},
             'messages': {t: counts1[t] - counts0[t] for t in counts0},
@@ -372,7 +356,7 @@ def main() -> int:
     if ns.seconds <= 0 or ns.warmup < 0:
         parser.error('--seconds must be positive and --warmup not negative')
     try:
-        extra = parse_sets(ns.set)
+        extra = parse_parameter_sets(ns.set)
     except ValueError as exc:
         parser.error(str(exc))
 

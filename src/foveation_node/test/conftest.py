@@ -55,3 +55,21 @@ def save_stub(directory: Path, labels: tuple[str, ...] = STUB_LABELS) -> tuple[P
 @pytest.fixture
 def stub_model(tmp_path: Path) -> tuple[Path, Path]:
     return save_stub(tmp_path)
+
+
+# The tabletop scene of an unseen seed (training: >= 10000; benchmark: 0-99) with the head tilted
+# up at the noise-textured wall, as the demo once ended; the objects at the image's bottom.
+WALL_SEED, WALL_JOINTS, WALL_FIXATION = 903, (0.0, -0.15, -0.1, 0.0, 0.0), (320.0, 160.0)
+
+
+@pytest.fixture(scope='module')
+def wall_view():
+    """(the simulator's view of that wall, the fixation on it); skipped without offscreen
+    rendering."""
+    render = pytest.importorskip('vizzy_sim_bridge.core.render')
+    from foveation_node.training.tabletop_views import TabletopViews
+    try:
+        with TabletopViews() as tv:
+            return tv.view(WALL_SEED, WALL_JOINTS), WALL_FIXATION
+    except render.RendererUnavailable as exc:
+        pytest.skip(str(exc))

@@ -69,34 +69,20 @@ def test_saliency_boxes_land_on_the_object(classifier, views) -> None:
     assert hits >= 0.75 * len(views), f'{hits} of {len(views)} saliency boxes on the object'
 
 
-# the tabletop scene of an unseen seed (training: >= 10000; benchmark: 0-99) with the head
-# tilted up at the noise-textured wall, as the demo ended; the objects at the image's bottom
-WALL_SEED, WALL_JOINTS, WALL_FIXATION = 903, (0.0, -0.15, -0.1, 0.0, 0.0), (320.0, 160.0)
-
-
-@pytest.fixture(scope='module')
-def wall_view():
-    from foveation_node.training.tabletop_views import TabletopViews
-    try:
-        with TabletopViews() as tv:
-            return tv.view(WALL_SEED, WALL_JOINTS)
-    except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
-
-
 def test_says_background_on_a_wall_and_reports_no_object_there(classifier, wall_view) -> None:
     from foveation_node.training.background_views import object_distance
+    view, fixation = wall_view            # conftest: the wall the demo once stared at
 
     fov = Foveator(640, 480, 5, 100.0)
-    assert object_distance(wall_view.extents, *WALL_FIXATION) > 150    # wall, objects below
-    probs = classifier.classify(fov.foveate(wall_view.rgb, WALL_FIXATION))[0]
+    assert object_distance(view.extents, *fixation) > 150    # wall, objects below
+    probs = classifier.classify(fov.foveate(view.rgb, fixation))[0]
     assert classifier.labels[int(probs.argmax())] == BACKGROUND_LABEL, probs.round(2)
     # two passes from the wall: whatever pass 2 reports lies on an object (its fovea moved to
     # one of the table's objects), never on the wall
-    res = two_pass(classifier, wall_view.rgb, WALL_FIXATION, fov.foveate)
+    res = two_pass(classifier, view.rgb, fixation, fov.foveate)
     for d in res.second:
         assert d.label != BACKGROUND_LABEL
-        assert object_distance(wall_view.extents, *d.centre) <= 10, (d.label, d.score, d.centre)
+        assert object_distance(view.extents, *d.centre) <= 10, (d.label, d.score, d.centre)
     # a synthetic plain wall (uniform grey, as the room's walls and ceiling): nothing at all
     plain = np.full((480, 640, 3), 175, np.uint8)
     probs = classifier.classify(fov.foveate(plain, (319.5, 239.5)))[0]

@@ -24,7 +24,6 @@ PRINCIPAL = (319.5, 239.5)
 # +-12 px grid around it, and two_pass's pass 1 names them), so the test checks that the model
 # and its preprocessing work as shipped, not the model's accuracy (held-out figures: its JSON)
 FIXATED = ((20002, 'can_2'), (20002, 'box_0'), (20004, 'sphere_0'))
-WALL_SEED, WALL_JOINTS, WALL_FIXATION = 903, (0.0, -0.15, -0.1, 0.0, 0.0), (320.0, 160.0)
 
 
 @pytest.fixture(scope='module')
@@ -87,27 +86,18 @@ def test_names_the_fixated_object(classifier, fixated_views) -> None:
         assert res.first and res.first[0].class_id == label, (name, res.first)
 
 
-@pytest.fixture(scope='module')
-def wall_view():
-    from foveation_node.training.tabletop_views import TabletopViews
-    try:
-        with TabletopViews() as tv:
-            return tv.view(WALL_SEED, WALL_JOINTS)
-    except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
-
-
 def test_says_background_on_a_wall(classifier, wall_view) -> None:
     from foveation_node.training.background_views import object_distance
+    view, fixation = wall_view            # conftest: the wall the demo once stared at
 
     fov = Foveator(640, 480, 5, 100.0)
-    assert object_distance(wall_view.extents, *WALL_FIXATION) > 150    # wall, objects below
-    probs = classifier.classify(fov.foveate(wall_view.rgb, WALL_FIXATION), [WALL_FIXATION])[0]
+    assert object_distance(view.extents, *fixation) > 150    # wall, objects below
+    probs = classifier.classify(fov.foveate(view.rgb, fixation), [fixation])[0]
     assert classifier.labels[int(probs.argmax())] == BACKGROUND_LABEL, probs.round(2)
-    res = two_pass(classifier, wall_view.rgb, WALL_FIXATION, fov.foveate)
+    res = two_pass(classifier, view.rgb, fixation, fov.foveate)
     assert res.first == []                       # pass 1 reports nothing at the wall
     for d in res.second:                         # pass 2 moved its fovea onto an object
-        assert object_distance(wall_view.extents, *d.centre) <= 10, (d.label, d.score, d.centre)
+        assert object_distance(view.extents, *d.centre) <= 10, (d.label, d.score, d.centre)
     plain = np.full((480, 640, 3), 175, np.uint8)              # a plain grey wall
     probs = classifier.classify(fov.foveate(plain, PRINCIPAL), [PRINCIPAL])[0]
     assert classifier.labels[int(probs.argmax())] == BACKGROUND_LABEL, probs.round(2)

@@ -59,11 +59,13 @@ def test_graph_starts_and_stops_cleanly(tmp_path):
         up = wait_until(all_outputs_flowing, 90)
         running = launcher.poll()
         sockets = {name: bound_addresses(proc.pid) for name, proc in launcher.procs.items()}
+        cpu = launcher.cpu_seconds()       # what the benchmarks read: every node, CPU so far
     finally:
         codes = launcher.stop()
     log.seek(0)
     text = log.read()
     assert up, f'no messages on {OUTPUTS - heard}; launch log:\n{text[-3000:]}'
+    assert set(cpu) == {n.name for n in graph.nodes} and all(v > 0 for v in cpu.values()), cpu
     assert all(code is None for code in running.values()), running
     assert codes == {name: 0 for name in codes}, f'unclean exit {codes}; log:\n{text[-3000:]}'
     # nothing reachable beyond loopback (the bundled runtime through loopback.py's shim, Fast DDS
@@ -169,6 +171,23 @@ def test_cli_reports_errors_in_one_line():
         2, 'vizzy: bag record: give topics to record or -a/--all (as ros2 bag record)')
 
 
+@pytest.mark.parametrize('argv, said', [
+    (['launch', '--duration', '-5'], "vizzy launch: argument --duration: '-5': expected a positive "
+                                     'number of seconds'),
+    (['launch', '--grace', '-1'], "vizzy launch: argument --grace: '-1': expected a non-negative "
+                                  'number of seconds'),
+    (['launch', '--duration', 'nan'], "argument --duration: 'nan': expected a positive number"),
+    (['bag', 'play', 'x', '-r', '0'], "vizzy bag play: argument -r/--rate: '0': expected a "
+                                      'positive number'),
+    (['bag', 'record', '-a', '-d', 'inf'], "argument -d/--duration: 'inf': expected a positive"),
+])
+def test_bad_numbers_are_refused_in_one_line_before_anything_starts(argv, said):
+    proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', *argv], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert said in proc.stderr and not proc.stdout
+
+
 def test_default_transport_stays_on_loopback():
     xml = dds.loopback_config()
     assert '<NetworkInterface address="127.0.0.1"/>' in xml
@@ -223,6 +242,17 @@ def test_nodes_end_when_their_launcher_is_killed(tmp_path):
             if _pid_running(pid):
                 os.kill(pid, signal.SIGKILL)
     assert not _pid_running(pids[0]), f'node {pids[0]} outlived its SIGKILLed launcher'
+
+
+def test_parameter_sets_for_benchmarks() -> None:
+    from vizzy_runtime.launcher import parse_parameter_sets
+    assert parse_parameter_sets(['mot_planner.scale=1.1', 'sim.seed=3', 'sim.scene=tabletop',
+                                 'stereo_ses.depth_range_m=[0.3, 5]']) == {
+        'mot_planner': {'scale': 1.1}, 'sim': {'seed': 3, 'scene': 'tabletop'},
+        'stereo_ses': {'depth_range_m': [0.3, 5]}}
+    for bad in ('scale=1.1', 'mot_planner.scale', '.scale=1', 'mot_planner.=1'):
+        with pytest.raises(ValueError, match='expected node.parameter=value'):
+            parse_parameter_sets([bad])
 
 
 def test_end_with_launcher_arms_only_under_a_launcher() -> None:

@@ -386,9 +386,49 @@ def cmd_bag_reindex(ns: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors in one line (`vizzy launch: argument --duration: ...`), exit 2;
+    the subcommands' parsers are of this class too."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f'{self.prog}: {message} (see {self.prog} --help)\n')
+
+
+def _seconds(text: str, *, zero: bool) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number of seconds') from None
+    if not math.isfinite(value) or value < 0 or (value == 0 and not zero):
+        raise argparse.ArgumentTypeError(
+            f'{text!r}: expected a {"non-negative" if zero else "positive"} number of seconds')
+    return value
+
+
+def positive_seconds(text: str) -> float:
+    """argparse type: a finite number of seconds > 0."""
+    return _seconds(text, zero=False)
+
+
+def nonnegative_seconds(text: str) -> float:
+    """argparse type: a finite number of seconds >= 0."""
+    return _seconds(text, zero=True)
+
+
+def positive_number(text: str) -> float:
+    """argparse type: a finite number > 0 (a playback rate)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f'{text!r}: expected a positive number')
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog='vizzy', description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _Parser(prog='vizzy', description=__doc__,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest='verb', required=True)
 
     run = sub.add_parser('run', help='run one node (like ros2 run)')
@@ -403,11 +443,11 @@ def build_parser() -> argparse.ArgumentParser:
     la = sub.add_parser('launch', help='start the graph, one process per node (like ros2 launch)')
     la.add_argument('graph', nargs='?',
                     help='graph YAML (default: vizzy_runtime config/graph.yaml)')
-    la.add_argument('--duration', type=float, help='stop after this many seconds')
+    la.add_argument('--duration', type=positive_seconds, help='stop after this many seconds')
     la.add_argument('--namespace', default='',
                     help='put the whole graph in this namespace (e.g. /head2), like ros2 launch '
                          'vizzy_runtime graph.launch.py namespace:=/head2')
-    la.add_argument('--grace', type=float, default=5.0, metavar='S',
+    la.add_argument('--grace', type=nonnegative_seconds, default=5.0, metavar='S',
                     help='on stop, seconds from SIGINT to SIGTERM for nodes still running '
                          '(default 5; like ros2 launch sigterm_timeout)')
     la.add_argument('--view-port', type=int, default=DEFAULT_VIEW_PORT, metavar='PORT',
@@ -423,14 +463,14 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument('--host', default=None,
                       help='address to listen on (default 127.0.0.1; every interface with '
                            'VIZZY_DDS_LAN=1)')
-    view.add_argument('--duration', type=float, help='stop after this many seconds')
+    view.add_argument('--duration', type=positive_seconds, help='stop after this many seconds')
     view.set_defaults(func=cmd_view)
 
     topic = sub.add_parser('topic', help='inspect topics').add_subparsers(
         dest='topic_verb', required=True)
     tl = topic.add_parser('list')
     tl.add_argument('-t', '--show-types', action='store_true')
-    tl.add_argument('--wait', type=float, default=1.0,
+    tl.add_argument('--wait', type=nonnegative_seconds, default=1.0,
                     help='seconds to listen for discovery at least; then until every ROS 2 process '
                          'seen has shown its readers and writers (at most 5 s more)')
     tl.set_defaults(func=cmd_topic_list)
@@ -438,19 +478,19 @@ def build_parser() -> argparse.ArgumentParser:
         t = topic.add_parser(name)
         t.add_argument('topic')
         t.add_argument('--type', help='message type, if no publisher is up yet')
-        t.add_argument('--timeout', type=float, default=10.0,
+        t.add_argument('--timeout', type=positive_seconds, default=10.0,
                        help='seconds to wait for a publisher')
         if name == 'echo':
             t.add_argument('-n', '--count', type=int, help='exit after this many messages')
         else:
             t.add_argument('--window', type=int, default=100)
-            t.add_argument('--duration', type=float, help='exit after this many seconds')
+            t.add_argument('--duration', type=positive_seconds, help='exit after this many seconds')
         t.set_defaults(func=func)
 
     node = sub.add_parser('node', help='inspect nodes').add_subparsers(
         dest='node_verb', required=True)
     nl = node.add_parser('list')
-    nl.add_argument('--wait', type=float, default=1.0,
+    nl.add_argument('--wait', type=nonnegative_seconds, default=1.0,
                     help='seconds to listen for discovery at least; then until every ROS 2 process '
                          'seen has announced its nodes (at most 5 s more)')
     nl.set_defaults(func=cmd_node_list)
@@ -464,16 +504,18 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument('topics', nargs='*')
     rec.add_argument('-a', '--all', action='store_true')
     rec.add_argument('-o', '--output', help='bag directory to create (default rosbag2_<time>)')
-    rec.add_argument('-d', '--duration', type=float, help='seconds (default: until Ctrl-C)')
+    rec.add_argument('-d', '--duration', type=positive_seconds,
+                     help='seconds (default: until Ctrl-C)')
     rec.add_argument('--include-hidden', action='store_true', help='also hidden topics (_name)')
     rec.add_argument('--exclude-topics', nargs='+', metavar='TOPIC', help='topics not to record')
     rec.set_defaults(func=cmd_bag_record)
     play = bag.add_parser('play')
     play.add_argument('bag')
-    play.add_argument('-r', '--rate', type=float, default=1.0)
+    play.add_argument('-r', '--rate', type=positive_number, default=1.0)
     play.add_argument('--topics', nargs='+')
     play.add_argument('-l', '--loop', action='store_true')
-    play.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='SECONDS')
+    play.add_argument('--wait-for-subscribers', type=nonnegative_seconds, default=0.0,
+                      metavar='SECONDS')
     play.set_defaults(func=cmd_bag_play)
     info = bag.add_parser('info')
     info.add_argument('bag')

@@ -125,6 +125,19 @@ def share_dir(package: str) -> Path:
     return Path(module.__file__).resolve().parent.parent
 
 
+def parse_parameter_sets(items: list[str]) -> dict[str, dict[str, Any]]:
+    """['node.param=value', ...] (each value read as YAML) -> {node: {param: value}}: what a
+    benchmark's --set gives every run's params file. ValueError names a bad item."""
+    out: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, value = item.partition('=')
+        node, dot, param = key.partition('.')
+        if not (sep and dot and node and param):
+            raise ValueError(f'--set {item!r}: expected node.parameter=value')
+        out.setdefault(node, {})[param] = yaml.safe_load(value)
+    return out
+
+
 def default_graph_file() -> Path:
     return share_dir('vizzy_runtime') / 'config' / 'graph.yaml'
 
@@ -443,6 +456,16 @@ class Launcher:
                 if proc.poll() is None:
                     self._keep_standby(name)
             self._stopping.wait(0.05)
+
+    def cpu_seconds(self) -> dict[str, float]:
+        """Each running node process's user + system CPU time so far [s] (benchmarks)."""
+        from .lockstep import process_cpu_seconds
+        out = {}
+        for name, proc in list(self.procs.items()):
+            cpu = process_cpu_seconds(proc.pid)
+            if cpu is not None:
+                out[name] = cpu
+        return out
 
     def poll(self) -> dict[str, int | None]:
         return {name: proc.poll() for name, proc in list(self.procs.items())}

@@ -58,7 +58,7 @@ if USING_REAL_ROS:
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
     RCLError = _rclpy_impl.RCLError  # e.g. publishing on a context that was shut down
     from rclpy.node import Node
-    from rclpy.parameter import Parameter
+    from rclpy.parameter import Parameter, parameter_value_to_python
     from rclpy.parameter_client import AsyncParameterClient
     from rclpy.qos import (
         DurabilityPolicy,
@@ -93,6 +93,7 @@ else:
         ParameterDescriptor,
         ParameterType,
         SetParametersResult,
+        parameter_value_to_python,
     )
     from .rclpy_compat.parameter_client import AsyncParameterClient
     from .rclpy_compat.qos import (
@@ -138,6 +139,7 @@ __all__ = [
     'InvalidParameterTypeException', 'InvalidHandle', 'InvalidParameterValueException',
     'MultiThreadedExecutor', 'Node', 'ParameterException', 'Parameter', 'ParameterDescriptor',
     'ParameterType', 'QoSProfile', 'RCLError', 'ReliabilityPolicy', 'SetParametersResult',
-    'SingleThreadedExecutor', 'Time', 'message', 'qos_profile_latched', 'qos_profile_sensor_data',
-    'qos_profile_system_default', 'rclpy', 'warm_up',
+    'SingleThreadedExecutor', 'Time', 'message', 'parameter_value_to_python',
+    'qos_profile_latched', 'qos_profile_sensor_data', 'qos_profile_system_default', 'rclpy',
+    'warm_up',
 ]
