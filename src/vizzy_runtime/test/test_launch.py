@@ -188,6 +188,21 @@ def test_bad_numbers_are_refused_in_one_line_before_anything_starts(argv, said):
     assert said in proc.stderr and not proc.stdout
 
 
+def test_a_parameter_value_no_node_could_take_is_refused_before_asking_one():
+    from vizzy_runtime.param_cli import parse_value
+    assert parse_value('levels', '5').value == 5
+    assert parse_value('levels', str(2 ** 63 - 1)).value == 2 ** 63 - 1
+    for bad, why in (('99999999999999999999999', '64-bit'),
+                     ('[1, -99999999999999999999]', '64-bit'), ('[1, 2', 'not YAML')):
+        with pytest.raises(ValueError, match=why):
+            parse_value('levels', bad)
+    proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'param', 'set',
+                           '/nowhere', 'levels', '99999999999999999999999'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert 'cannot read value' in proc.stderr and '64-bit' in proc.stderr
+
+
 def test_default_transport_stays_on_loopback():
     xml = dds.loopback_config()
     assert '<NetworkInterface address="127.0.0.1"/>' in xml

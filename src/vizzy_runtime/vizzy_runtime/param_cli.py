@@ -48,8 +48,35 @@ def _value_text(value: Any) -> str:
     return repr(python) if isinstance(python, (list, bytes)) else str(python)  # arrays as lists
 
 
-def cmd_param(ns: argparse.Namespace) -> int:
+INT64 = (-(1 << 63), (1 << 63) - 1)     # a ROS 2 integer parameter is an int64
+
+
+def parse_value(name: str, text: str) -> Any:
+    """A parameter value as `ros2 param set` reads it (YAML): a Parameter, or ValueError with
+    the reason in one line (not YAML, no parameter type, an integer beyond int64)."""
     from .rclpy_compat.parameter import Parameter
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ValueError(f'not YAML ({" ".join(str(err).split())})') from None
+    ints = [v for v in (value if isinstance(value, list) else [value])
+            if isinstance(v, int) and not isinstance(v, bool)]
+    if any(not INT64[0] <= v <= INT64[1] for v in ints):
+        raise ValueError('an integer beyond the 64-bit range of a ROS 2 integer parameter')
+    try:
+        return Parameter(name, value=value)
+    except (TypeError, ValueError) as err:
+        raise ValueError(str(err)) from None
+
+
+def cmd_param(ns: argparse.Namespace) -> int:
+    param = None
+    if ns.param_verb == 'set':        # a bad value is refused before any node is asked
+        try:
+            param = parse_value(ns.name, ns.value)
+        except ValueError as err:
+            print(f'vizzy: {ns.name}: cannot read value {ns.value!r}: {err}', file=sys.stderr)
+            return 2
     node, executor, client = _client(ns)
     try:
         name = client.remote_node_name
@@ -84,13 +111,7 @@ def cmd_param(ns: argparse.Namespace) -> int:
             if d.read_only:
                 print('  Read only: true')
             return 0
-        # set: the value is read as YAML, as `ros2 param set` reads it
-        try:
-            value = yaml.safe_load(ns.value)
-            param = Parameter(ns.name, value=value)
-        except (yaml.YAMLError, TypeError, ValueError) as err:
-            print(f'vizzy: {ns.name}: cannot read value {ns.value!r}: {err}', file=sys.stderr)
-            return 2
+        # set: the value was read (parse_value) above
         reply = _result(executor, client, client.set_parameters([param]), ns.timeout, name)
         result = reply.results[0]
         if result.successful:
