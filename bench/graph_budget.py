@@ -21,7 +21,9 @@ imports, measures a window of --seconds:
 With --lockstep the sim advances only as fast as every node consumes its frames
 (vizzy_runtime.lockstep), so every node serves every frame at the configured rates in simulated
 time: cores_at_configured_rate is then simply CPU seconds per simulated second, independent of the
-machine's load (no standbys in that mode).
+machine's load (no standbys in that mode). Its figures are higher than a wall-clock run's (a 10 s
+window: robot 1.09 cores against 0.83): every tick is a /clock step the nodes wait on and the
+sim renders on demand; use it to compare two versions, not as the budget.
 
     .venv/bin/python bench/graph_budget.py [--seconds 60] [--lockstep] [--no-standby]
         [--set node.param=value ...] [--out bench/results/graph_budget.json]
