@@ -203,6 +203,41 @@ def test_a_parameter_value_no_node_could_take_is_refused_before_asking_one():
     assert 'cannot read value' in proc.stderr and '64-bit' in proc.stderr
 
 
+def test_node_list_warns_of_nodes_that_share_a_name():
+    """Two processes each with a node /twin (a second graph on the domain): `vizzy node list`
+    lists the name once and warns on stderr, as ros2 node list does; one alone: no warning."""
+    script = ('import time\n'
+              'from vizzy_runtime.ros import rclpy\n'
+              'rclpy.init()\n'
+              'node = rclpy.create_node("twin")\n'
+              'time.sleep(60)\n')
+    env = {**os.environ, 'VIZZY_RUNTIME': 'bundled'}
+    twins = [subprocess.Popen([sys.executable, '-c', script], env=env) for _ in range(2)]
+    try:
+        def listing() -> subprocess.CompletedProcess[str]:
+            return subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'node', 'list',
+                                   '--wait', '3'], capture_output=True, text=True, timeout=60,
+                                  env=env)
+        proc = listing()
+        for _ in range(5):              # discovery of both may take a moment on a loaded machine
+            if proc.stdout.split().count('/twin') == 1 and '/twin (2)' in proc.stderr:
+                break
+            proc = listing()
+        assert proc.returncode == 0 and proc.stdout.split().count('/twin') == 1, proc
+        assert 'share an exact name' in proc.stderr and '/twin (2)' in proc.stderr, proc.stderr
+        twins.pop().kill()
+        proc = listing()
+        for _ in range(5):              # the killed participant's lease must run out first
+            if 'share an exact name' not in proc.stderr:
+                break
+            time.sleep(2.0)
+            proc = listing()
+        assert '/twin' in proc.stdout.split() and 'share an exact name' not in proc.stderr, proc
+    finally:
+        for twin in twins:
+            twin.kill()
+
+
 def test_default_transport_stays_on_loopback():
     xml = dds.loopback_config()
     assert '<NetworkInterface address="127.0.0.1"/>' in xml

@@ -347,7 +347,27 @@ def cmd_node_list(ns: argparse.Namespace) -> int:
     _listen(ns.wait, settled, start=start)
     for namespace, name in graph.node_names_and_namespaces():
         print(f'{namespace.rstrip("/")}/{name}')
+    shared = _shared_names(graph.snapshot())
+    if shared:   # as ros2 node list warns: a second graph (or a second sim) on this domain?
+        print('WARNING: Be aware that there are nodes in the graph that share an exact name, '
+              'which can have unintended side effects (a second graph on this ROS_DOMAIN_ID?): '
+              + ', '.join(f'{name} ({count})' for name, count in shared), file=sys.stderr)
     return 0
+
+
+def _shared_names(infos: list[Any]) -> list[tuple[str, int]]:
+    """(full name, how many) of each node name more than one node of the graph has."""
+    counts: dict[str, int] = {}
+    seen = set()
+    for info in infos:        # one node may be known twice (its own process's view and the wire)
+        key = (info.namespace, info.name, info.participant_gid, info.reader_gids,
+               info.writer_gids)
+        if key in seen:
+            continue
+        seen.add(key)
+        fqn = f'{info.namespace.rstrip("/")}/{info.name}'
+        counts[fqn] = counts.get(fqn, 0) + 1
+    return sorted((name, n) for name, n in counts.items() if n > 1)
 
 
 # --- bags --------------------------------------------------------------------------------------
