@@ -62,11 +62,10 @@ from vizzy_runtime.launcher import (  # noqa: E402
     load_graph,
     parse_parameter_sets,
 )
-from vizzy_runtime.lockstep import Conductor  # noqa: E402
+from vizzy_runtime.lockstep import Conductor, spun_node  # noqa: E402
 from vizzy_runtime.ros import (  # noqa: E402
     Context,
     Node,
-    SingleThreadedExecutor,
     message,
     qos_profile_latched,
     qos_profile_sensor_data,
@@ -545,32 +544,14 @@ def main() -> int:
         return 0
     from tqdm import tqdm
 
-    ctx = Context()
-    ctx.init(['active_perception_bench'])
-    node = BenchNode(ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(0.05)
-
-    spinner = threading.Thread(target=spin, name='bench_spin', daemon=True)
-    spinner.start()
     results = []
-    try:
-        with tempfile.TemporaryDirectory(prefix='active_perception_') as tmp:
-            for scene, config, seed in tqdm(plan, desc='runs', unit='run', file=sys.stderr):
-                r = one_run(node, scene, config, seed, ns.seconds, Path(tmp), extra)
-                results.append(r)
-                print(json.dumps({k: v for k, v in r.items() if k != 'samples'}),
-                      file=sys.stderr, flush=True)
-    finally:
-        stop.set()
-        spinner.join(timeout=2.0)
-        node.destroy_node()
-        ctx.try_shutdown()
+    with spun_node(BenchNode, 'active_perception_bench') as node, \
+            tempfile.TemporaryDirectory(prefix='active_perception_') as tmp:
+        for scene, config, seed in tqdm(plan, desc='runs', unit='run', file=sys.stderr):
+            r = one_run(node, scene, config, seed, ns.seconds, Path(tmp), extra)
+            results.append(r)
+            print(json.dumps({k: v for k, v in r.items() if k != 'samples'}),
+                  file=sys.stderr, flush=True)
     summary = summarize_runs(results, ns.seconds)
     if extra:
         summary['set'] = ns.set

@@ -60,12 +60,11 @@ from vizzy_runtime.launcher import (  # noqa: E402
     load_graph,
     parse_parameter_sets,
 )
-from vizzy_runtime.lockstep import Conductor, process_cpu_seconds  # noqa: E402
+from vizzy_runtime.lockstep import Conductor, process_cpu_seconds, spun_node  # noqa: E402
 from vizzy_runtime.ros import (  # noqa: E402
     AsyncParameterClient,
     Context,
     Node,
-    SingleThreadedExecutor,
     message,
     parameter_value_to_python,
     qos_profile_sensor_data,
@@ -362,59 +361,41 @@ def main() -> int:
     except ValueError as exc:
         parser.error(str(exc))
 
-    ctx = Context()
-    ctx.init(['graph_budget_bench'])
-    node = BudgetNode(ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(0.05)
-
-    spinner = threading.Thread(target=spin, name='budget_spin', daemon=True)
-    spinner.start()
-    try:
-        with tempfile.TemporaryDirectory(prefix='graph_budget_') as tmp:
-            graph = load_graph(graph_file(Path(tmp), ns.lockstep, not ns.no_standby, extra))
-            log_path = (ns.out.with_suffix('.log') if ns.out is not None
-                        else Path(tmp) / 'launch.log')
-            log_path.parent.mkdir(parents=True, exist_ok=True)
-            with open(log_path, 'w') as log:
-                launcher = Launcher(graph, output=log, grace_s=5.0)
-                conductor = (Conductor(node, lambda: [p.pid for p in launcher.procs.values()
-                                                      if p.poll() is None])
-                             if ns.lockstep else None)
-                launcher.start()
-                try:
-                    print('graph_budget: starting the graph', file=sys.stderr, flush=True)
-                    wait_for_graph(node, launcher, conductor)
-                    rates = read_rates(node, launcher)
-                    standby_cpu: dict[str, float] = {}
-                    standby_mb: dict[str, float] = {}
-                    if any(graph.standby(s) for s in graph.nodes) and conductor is None:
-                        print('graph_budget: waiting for the standbys\' imports',
-                              file=sys.stderr, flush=True)
-                        standby_cpu = wait_for_standbys(launcher)
-                    if conductor is None:
-                        time.sleep(ns.warmup)
-                    else:
-                        conductor.step_to(conductor.reached + ns.warmup)
-                    print(f'graph_budget: measuring {ns.seconds:g} s', file=sys.stderr,
-                          flush=True)
-                    window = measure(node, launcher, ns.seconds, conductor)
-                    for name, proc in launcher.standbys.items():
-                        mem = memory_mb(proc.pid)
-                        if mem is not None:
-                            standby_mb[name] = round(mem[1], 1)
-                finally:
-                    launcher.stop()
-    finally:
-        stop.set()
-        spinner.join(timeout=2.0)
-        node.destroy_node()
-        ctx.try_shutdown()
+    with spun_node(BudgetNode, 'graph_budget_bench') as node, \
+            tempfile.TemporaryDirectory(prefix='graph_budget_') as tmp:
+        graph = load_graph(graph_file(Path(tmp), ns.lockstep, not ns.no_standby, extra))
+        log_path = (ns.out.with_suffix('.log') if ns.out is not None
+                    else Path(tmp) / 'launch.log')
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+        with open(log_path, 'w') as log:
+            launcher = Launcher(graph, output=log, grace_s=5.0)
+            conductor = (Conductor(node, lambda: [p.pid for p in launcher.procs.values()
+                                                  if p.poll() is None])
+                         if ns.lockstep else None)
+            launcher.start()
+            try:
+                print('graph_budget: starting the graph', file=sys.stderr, flush=True)
+                wait_for_graph(node, launcher, conductor)
+                rates = read_rates(node, launcher)
+                standby_cpu: dict[str, float] = {}
+                standby_mb: dict[str, float] = {}
+                if any(graph.standby(s) for s in graph.nodes) and conductor is None:
+                    print('graph_budget: waiting for the standbys\' imports',
+                          file=sys.stderr, flush=True)
+                    standby_cpu = wait_for_standbys(launcher)
+                if conductor is None:
+                    time.sleep(ns.warmup)
+                else:
+                    conductor.step_to(conductor.reached + ns.warmup)
+                print(f'graph_budget: measuring {ns.seconds:g} s', file=sys.stderr,
+                      flush=True)
+                window = measure(node, launcher, ns.seconds, conductor)
+                for name, proc in launcher.standbys.items():
+                    mem = memory_mb(proc.pid)
+                    if mem is not None:
+                        standby_mb[name] = round(mem[1], 1)
+            finally:
+                launcher.stop()
     summary = summarize(window, rates, standby_mb, standby_cpu)
     summary.update(lockstep=ns.lockstep, rates=rates, set=ns.set or None)
     if ns.out is not None:

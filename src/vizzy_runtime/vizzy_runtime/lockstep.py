@@ -14,14 +14,15 @@ themselves by their stamps and the ROS clock instead.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-from vizzy_runtime.ros import QoSProfile, message
+from vizzy_runtime.ros import Context, QoSProfile, SingleThreadedExecutor, message
 
 Clock = message('rosgraph_msgs/msg/Clock')
 
@@ -151,5 +152,32 @@ class Conductor:
         return self.reached
 
 
+@contextlib.contextmanager
+def spun_node(make_node: Callable[[Any], Any], name: str) -> Iterator[Any]:
+    """A benchmark's node (make_node(context)) in a context of its own, spun by a daemon thread
+    while the with-block runs (its callbacks run there; a Conductor waits on them); destroyed
+    with its context afterwards."""
+    context = Context()
+    context.init([name])
+    node = make_node(context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(0.05)
+
+    spinner = threading.Thread(target=spin, name=f'{name}_spin', daemon=True)
+    spinner.start()
+    try:
+        yield node
+    finally:
+        stop.set()
+        spinner.join(timeout=2.0)
+        node.destroy_node()
+        context.try_shutdown()
+
+
 __all__ = ['BUSY_STATES', 'Conductor', 'Quiescence', 'STEPPED_TOPIC', 'STEP_TOPIC',
-           'process_cpu_seconds']
+           'process_cpu_seconds', 'spun_node']
