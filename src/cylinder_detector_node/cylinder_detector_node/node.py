@@ -73,11 +73,28 @@ import numpy as np
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
-from cylinder_detector_node.core.fitting import METHODS, FitParams, rotation_to_z
+from cylinder_detector_node.core.fitting import METHODS, FitParams
 from cylinder_detector_node.core.fitting import Cylinder as FittedCylinder
 from cylinder_detector_node.core.overlay import draw_cylinders, intrinsics_from_organized
 from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
 from cylinder_detector_node.core.segmentation import CAMERA_UP, SegmentParams
+from cylinder_detector_node.messages import (  # noqa: F401 (cloud reasons etc. re-exported)
+    BAD_FIELDS,
+    CLOUD_REASONS,
+    COLOUR_CHANNELS,
+    EMPTY_CLOUD,
+    NO_XYZ,
+    TOO_FEW_POINTS,
+    CloudRefused,
+    Marker,
+    cloud_problem,
+    cloud_xyz,
+    cluster_array,
+    colour_image_refusal,
+    cylinder_array,
+    marker_array,
+    rgb_image,
+)
 from vizzy_runtime.convert import (  # noqa: F401 (the image reasons: counter keys, re-exported)
     EMPTY_IMAGE,
     IMAGE_REASONS,
@@ -86,11 +103,7 @@ from vizzy_runtime.convert import (  # noqa: F401 (the image reasons: counter ke
     TOO_LARGE,
     UNCONVERTIBLE,
     UNSUPPORTED_ENCODING,
-    image_refusal,
-    image_to_numpy,
     numpy_to_image,
-    pointcloud2_dtype,
-    pointcloud2_to_array,
     stamp_seconds,
 )
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
@@ -106,17 +119,12 @@ from vizzy_runtime.node_tools import (
 )
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import TransformBuffer, TransformListener
-from vizzy_vision.frames import matrix_to_quaternion, quaternion_z_to
 
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
-CylinderMsg = message('active_vision_msgs/msg/Cylinder')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 Image = message('sensor_msgs/msg/Image')
-Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
-Detection3D = message('vision_msgs/msg/Detection3D')
 Detection3DArray = message('vision_msgs/msg/Detection3DArray')
-ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
 
 # Relative names: the graph remaps the generic inputs (points:=vizzy/rgbd/points, ...) and the
 # node's namespace places everything; logs print the resolved names.
@@ -127,13 +135,6 @@ CYLINDERS_TOPIC = 'cylinders'
 MARKERS_TOPIC = 'cylinders/markers'
 CLUSTERS_TOPIC = 'cylinders/clusters'
 OVERLAY_TOPIC = 'cylinders/overlay'
-# Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
-NO_XYZ = 'no xyz fields'
-BAD_FIELDS = 'bad field layout'
-EMPTY_CLOUD = 'empty cloud'
-TOO_FEW_POINTS = 'too few finite points'
-CLOUD_REASONS = (NO_XYZ, BAD_FIELDS, SHORT_DATA, EMPTY_CLOUD, TOO_FEW_POINTS)
-COLOUR_CHANNELS = {'rgb8': 3, 'bgr8': 3, 'rgba8': 4, 'bgra8': 4}
 WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
 REPORT_PERIOD_S = 10.0
 
@@ -225,152 +226,6 @@ def up_in_frame(buffer: TransformBuffer, up_frame: str,
     rot = buffer.lookup_transform(up_frame, cloud_frame)[:3, :3]   # cloud -> up_frame
     up = rot.T @ np.array([0.0, 0.0, 1.0])
     return tuple(float(v) for v in up / np.linalg.norm(up))       # type: ignore[return-value]
-
-
-class CloudRefused(ValueError):
-    """A cloud the node cannot use: reason (one of CLOUD_REASONS, a counter key), str = detail."""
-
-    def __init__(self, reason: str, detail: str) -> None:
-        super().__init__(detail)
-        self.reason = reason
-
-
-def cloud_problem(msg: Any, min_points: int) -> str | None:
-    """Why a cloud cannot be used, or None if it can (vectorized over the points)."""
-    try:
-        cloud_xyz(msg, min_points)
-    except ValueError as exc:
-        return str(exc)
-    return None
-
-
-def cloud_xyz(msg: Any, min_points: int) -> np.ndarray:
-    """(H, W, 3) float32 xyz of a PointCloud2 (NaN kept); CloudRefused (a ValueError) saying why
-    it is unusable."""
-    names = [f.name for f in msg.fields]
-    missing = [n for n in ('x', 'y', 'z') if n not in names]
-    if missing:
-        raise CloudRefused(NO_XYZ, f'no field(s) {", ".join(missing)} '
-                                   f'(fields: {", ".join(names) or "none"})')
-    try:
-        pointcloud2_dtype(msg)
-    except (ValueError, TypeError) as exc:   # unknown datatype, a field beyond point_step
-        raise CloudRefused(BAD_FIELDS, f'{exc} (point_step {msg.point_step})') from None
-    try:
-        points = pointcloud2_to_array(msg)
-    except ValueError as exc:                # ConversionError: fewer bytes than the points need
-        raise CloudRefused(SHORT_DATA, str(exc)) from None
-    if points.size == 0:
-        raise CloudRefused(EMPTY_CLOUD, f'{msg.width}x{msg.height} points')
-    try:
-        xyz = np.stack([points['x'], points['y'], points['z']], axis=-1).astype(np.float32,
-                                                                               copy=False)
-    except (ValueError, TypeError) as exc:   # e.g. x, y, z with different counts
-        raise CloudRefused(BAD_FIELDS, f'x, y, z: {exc}') from None
-    # counted from the three fields: 0.4 ms per VGA cloud, against 5.2 ms through xyz.sum
-    # (which also called finite points whose sum overflows non-finite)
-    n = int(np.count_nonzero(np.isfinite(points['x']) & np.isfinite(points['y'])
-                             & np.isfinite(points['z'])))
-    if n < min_points or n == 0:
-        raise CloudRefused(TOO_FEW_POINTS, f'{n} finite points of {points.size}, fewer than '
-                                           f'min_points={max(min_points, 1)}')
-    return xyz
-
-
-def colour_image_refusal(msg: Any) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image is no usable colour image, or None if it is
-    (reason: one of IMAGE_REASONS, a counter key)."""
-    return image_refusal(msg, COLOUR_CHANNELS, convert=rgb_image)
-
-
-def rgb_image(msg: Any) -> np.ndarray:
-    """(H, W, 3) uint8 RGB of an rgb8/bgr8/rgba8/bgra8 Image; ValueError naming the problem."""
-    img = image_to_numpy(msg)          # ConversionError is a ValueError
-    enc = msg.encoding
-    if enc in ('rgb8', 'rgba8'):
-        return img[..., :3]
-    if enc in ('bgr8', 'bgra8'):
-        return img[..., 2::-1]
-    raise ValueError(f'image encoding {enc!r} is not a colour one (rgb8, bgr8, rgba8, bgra8)')
-
-
-def cylinder_array(header: Any, cylinders: list[FittedCylinder],
-                   probabilities: list[float | None] | None = None) -> Any:
-    out = CylinderArray(header=header)
-    probabilities = probabilities or [None] * len(cylinders)
-    for i, (c, p) in enumerate(zip(cylinders, probabilities, strict=True)):
-        m = CylinderMsg(id=i, label='cylinder', radius=float(c.radius), height=float(c.height),
-                        confidence=float(c.confidence if p is None else p),
-                        fit_quality=float(c.confidence))
-        m.center.x, m.center.y, m.center.z = (float(v) for v in c.centre)
-        m.axis.x, m.axis.y, m.axis.z = (float(v) for v in c.axis)
-        out.cylinders.append(m)
-    return out
-
-
-def cluster_array(header: Any, det: Detection | None) -> Any:
-    """Every object the segmentation found on the table as a vision_msgs/Detection3DArray in the
-    cloud's frame: per cluster the box of its points aligned with the table (z along the table
-    normal; size = extents), id its index, and, when the pre-attention CNN saw it, one result
-    'cylinder' with P(cylinder)."""
-    out = Detection3DArray(header=header)
-    if det is None or det.plane is None:
-        return out
-    rot = rotation_to_z(np.asarray(det.plane[:3], np.float64))   # cloud -> table frame
-    quat = matrix_to_quaternion(rot.T)                           # the table frame in the cloud's
-    for i, (cl, p) in enumerate(zip(det.all_clusters, det.cluster_probabilities, strict=True)):
-        pts = np.asarray(cl.points, np.float64) @ rot.T
-        if len(pts) == 0:
-            continue
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        centre = rot.T @ (0.5 * (lo + hi))
-        d = Detection3D(header=header, id=str(i))
-        c = d.bbox.center
-        c.position.x, c.position.y, c.position.z = (float(v) for v in centre)
-        c.orientation.x, c.orientation.y, c.orientation.z, c.orientation.w = (float(v)
-                                                                              for v in quat)
-        d.bbox.size.x, d.bbox.size.y, d.bbox.size.z = (float(v) for v in hi - lo)
-        if p is not None:
-            hyp = ObjectHypothesisWithPose()
-            hyp.hypothesis.class_id, hyp.hypothesis.score = 'cylinder', float(p)
-            hyp.pose.pose = c
-            d.results.append(hyp)
-        out.detections.append(d)
-    return out
-
-
-def marker_array(header: Any, cylinders: list[FittedCylinder],
-                 probabilities: list[float | None] | None = None) -> Any:
-    """DELETEALL, then a CYLINDER and a TEXT label per cylinder, in the cloud's frame."""
-    out = MarkerArray()
-    clear = Marker(action=Marker.DELETEALL)
-    clear.header = header
-    out.markers.append(clear)
-    probabilities = probabilities or [None] * len(cylinders)
-    for i, (c, p) in enumerate(zip(cylinders, probabilities, strict=True)):
-        conf = float(np.clip(c.confidence if p is None else p, 0.0, 1.0))
-        body = Marker(ns='cylinders', id=i, type=Marker.CYLINDER, action=Marker.ADD)
-        body.header = header
-        (body.pose.position.x, body.pose.position.y,
-         body.pose.position.z) = (float(v) for v in c.centre)
-        q = quaternion_z_to(np.array(c.axis))
-        (body.pose.orientation.x, body.pose.orientation.y, body.pose.orientation.z,
-         body.pose.orientation.w) = q
-        body.scale.x = body.scale.y = 2.0 * float(c.radius)
-        body.scale.z = float(c.height)
-        body.color.r, body.color.g, body.color.b, body.color.a = 1.0 - conf, conf, 0.1, 0.8
-        out.markers.append(body)
-        label = Marker(ns='cylinder_labels', id=i, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD)
-        label.header = header
-        top = np.array(c.centre) + (0.5 * c.height + 0.03) * np.array(c.axis)
-        (label.pose.position.x, label.pose.position.y,
-         label.pose.position.z) = (float(v) for v in top)
-        label.pose.orientation.w = 1.0
-        label.scale.z = 0.03
-        label.color.r = label.color.g = label.color.b = label.color.a = 1.0
-        label.text = f'{i}: r {100 * c.radius:.1f} cm, p {conf:.2f}'
-        out.markers.append(label)
-    return out
 
 
 class CylinderDetectorNode(Node):
