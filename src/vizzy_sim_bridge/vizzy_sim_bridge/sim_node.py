@@ -43,7 +43,6 @@ A processed command (clamped or not) counts as accepted on that topic.
 
 from __future__ import annotations
 
-import array
 import contextlib
 import math
 import os
@@ -66,7 +65,6 @@ from vizzy_runtime.node_tools import (
     replace_timer,
 )
 from vizzy_runtime.ros import (
-    USING_REAL_ROS,
     ExternalShutdownException,
     Node,
     Parameter,
@@ -81,15 +79,22 @@ from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, se
 from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
 from vizzy_sim_bridge.core.scenes import SCENE_NAMES, SceneUnavailable, build_scene
 from vizzy_sim_bridge.core.urdf import head_urdf
-from vizzy_vision.camera import camera_matrix, project, projection_matrix
-from vizzy_vision.frames import rotation_matrix
+from vizzy_sim_bridge.messages import (  # noqa: F401 (box_corners, image_box: re-exported)
+    box_corners,
+    fill_pose,
+    float_seq,
+    image_box,
+    object_markers,
+    stamp_msg,
+    transform_messages,
+)
+from vizzy_vision.camera import camera_matrix, projection_matrix
 from vizzy_vision.kinematics import (
     BASELINE,
     CAMERA_FRAMES,
     JOINT_LIMITS,
     JOINT_NAMES,
     RGBD_FRAME,
-    Transform,
     frames_in_base,
     joint_transforms,
     static_transforms,
@@ -204,105 +209,6 @@ def check_parameters(values: dict[str, Any]) -> str | None:
     if values['rgbd_min_range_m'] >= values['rgbd_max_range_m']:
         return 'rgbd_min_range_m must be < rgbd_max_range_m'
     return None
-
-
-def stamp_msg(t: float) -> Any:
-    """builtin_interfaces/Time of t [s]."""
-    sec = math.floor(t)
-    return TimeMsg(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
-
-
-def _float_seq(values: Any) -> Any:
-    """A float64[] field value: array.array for rclpy, numpy for the bundled runtime."""
-    if USING_REAL_ROS:
-        return array.array('d', [float(v) for v in values])
-    return np.asarray(values, dtype=np.float64)
-
-
-def transform_messages(transforms: list[Transform], stamp: Any) -> list[Any]:
-    """geometry_msgs/TransformStamped of each kinematics.Transform, stamped stamp: what goes out
-    on /tf and /tf_static."""
-    out = []
-    for t in transforms:
-        msg = TransformStamped(child_frame_id=t.child)
-        msg.header.stamp = stamp
-        msg.header.frame_id = t.parent
-        tr, rot = msg.transform.translation, msg.transform.rotation
-        tr.x, tr.y, tr.z = (float(v) for v in t.translation)
-        rot.x, rot.y, rot.z, rot.w = (float(v) for v in t.rotation)
-        out.append(msg)
-    return out
-
-
-def _fill_pose(pose: Any, position: Any, quaternion: Any) -> None:
-    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
-    (pose.orientation.x, pose.orientation.y, pose.orientation.z,
-     pose.orientation.w) = (float(v) for v in quaternion)
-
-
-def object_markers(objects: list[Any], stamp: Any, frame_id: str = 'base_link') -> Any:
-    """MarkerArray of scene objects: shape (ns objects), cylinder axes (ns cylinder_axes, arrows
-    from the bottom to the top face's centre), names with dimensions (ns labels)."""
-    markers = [Marker(action=Marker.DELETEALL, ns='')]
-    markers[0].header.frame_id = frame_id
-    markers[0].header.stamp = stamp
-    shape_type = {'cylinder': Marker.CYLINDER, 'box': Marker.CUBE, 'sphere': Marker.SPHERE}
-    for obj in objects:
-        m = Marker(ns='objects', id=obj.id, type=shape_type[obj.shape], action=Marker.ADD)
-        m.header.frame_id, m.header.stamp = frame_id, stamp
-        _fill_pose(m.pose, obj.position, obj.orientation)
-        m.scale.x, m.scale.y, m.scale.z = (float(v) for v in obj.size)
-        m.color.r, m.color.g, m.color.b, m.color.a = (float(v) for v in obj.color)
-        m.text = obj.name
-        markers.append(m)
-        label = Marker(ns='labels', id=obj.id, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD)
-        label.header.frame_id, label.header.stamp = frame_id, stamp
-        _fill_pose(label.pose, np.add(obj.position, (0.0, 0.0, 0.5 * obj.size[2] + 0.03)),
-                   (0.0, 0.0, 0.0, 1.0))
-        label.scale.z = 0.025
-        label.color.r = label.color.g = label.color.b = label.color.a = 1.0
-        if obj.is_cylinder:
-            label.text = (f'{obj.name} r={obj.radius:.3f} h={obj.height:.3f}'
-                          + (' lid' if obj.lid else ''))
-            axis = Marker(ns='cylinder_axes', id=obj.id, type=Marker.ARROW, action=Marker.ADD)
-            axis.header.frame_id, axis.header.stamp = frame_id, stamp
-            axis.pose.orientation.w = 1.0
-            c, a = np.asarray(obj.position), np.asarray(obj.axis)
-            axis.points = [Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
-                           for p in (c - 0.5 * obj.height * a, c + 0.5 * obj.height * a)]
-            axis.scale.x, axis.scale.y, axis.scale.z = 0.004, 0.01, 0.015
-            axis.color.r, axis.color.g, axis.color.b, axis.color.a = 1.0, 1.0, 0.0, 1.0
-            markers.append(axis)
-        else:
-            label.text = f'{obj.name} ' + 'x'.join(f'{v:.3f}' for v in obj.size)
-        markers.append(label)
-    return MarkerArray(markers=markers)
-
-
-def box_corners(center: Any, size: Any, quaternion: Any) -> np.ndarray:
-    """8 x 3 corners of a box (centre, full size, orientation (x, y, z, w))."""
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
-    local = 0.5 * signs * np.asarray(size, float)
-    return local @ rotation_matrix(quaternion).T + np.asarray(center, float)
-
-
-def image_box(k: np.ndarray, camera_pose: np.ndarray, corners: np.ndarray, width: int,
-              height: int) -> tuple[float, float, float, float] | None:
-    """(u0, v0, u1, v1) [px] of the corners' projection clipped to the image, or None when the
-    box is not in view (behind the camera or entirely outside the image)."""
-    uv = project(k, camera_pose, corners)
-    if np.isnan(uv).any():
-        cam = (corners - camera_pose[:3, 3]) @ camera_pose[:3, :3]
-        if (cam[:, 2] <= 0.05).all():
-            return None
-        uv = uv[~np.isnan(uv).any(axis=1)]   # partly behind: bound the visible corners
-    u0, v0 = np.min(uv, axis=0)
-    u1, v1 = np.max(uv, axis=0)
-    u0, u1 = max(u0, -0.5), min(u1, width - 0.5)
-    v0, v1 = max(v0, -0.5), min(v1, height - 0.5)
-    if u0 >= u1 or v0 >= v1:
-        return None
-    return float(u0), float(v0), float(u1), float(v1)
 
 
 def _next_due(due: float, t: float, rate_hz: float) -> float:
@@ -445,7 +351,7 @@ class SimNode(Node):
                      frame_id: str) -> Any:
         info = CameraInfo(width=spec.width, height=spec.height, distortion_model='plumb_bob')
         info.header.frame_id = frame_id
-        info.d = _float_seq([0.0] * 5)
+        info.d = float_seq([0.0] * 5)
         info.k = np.ascontiguousarray(k, dtype=np.float64).reshape(9)
         info.r = np.eye(3).reshape(9)
         info.p = np.ascontiguousarray(projection_matrix(k, baseline_m)).reshape(12)
@@ -466,9 +372,9 @@ class SimNode(Node):
         stamp = self._now(t)
         joints = JointState(name=list(JOINT_NAMES))
         joints.header.stamp = stamp
-        joints.position = _float_seq(position)
-        joints.velocity = _float_seq(velocity)
-        joints.effort = _float_seq(effort)
+        joints.position = float_seq(position)
+        joints.velocity = float_seq(velocity)
+        joints.effort = float_seq(effort)
         # from the joint timer or the render thread (see _render_loop)
         publish_from_thread(self, self._joint_pub, joints)
         publish_from_thread(self, self._tf_pub, TFMessage(transforms=transform_messages(
@@ -650,7 +556,7 @@ class SimNode(Node):
             m = Marker(ns='pedestrians', id=box['id'], type=Marker.CUBE, action=Marker.ADD,
                        text=box['label'])
             m.header.frame_id, m.header.stamp = 'base_link', stamp
-            _fill_pose(m.pose, box['center'], box['orientation'])
+            fill_pose(m.pose, box['center'], box['orientation'])
             m.scale.x, m.scale.y, m.scale.z = box['size']
             m.color.r, m.color.g, m.color.b, m.color.a = 0.2, 0.8, 0.2, 0.5
             markers.append(m)
