@@ -1,6 +1,7 @@
-"""Receive sockets on 127.0.0.1 by default (loopback.py and its LD_PRELOAD shim): Cyclone alone
-binds the wildcard address, with the shim every socket of the bundled runtime is on loopback, and
-VIZZY_DDS_LAN=1 turns the rewrite off. The whole graph's nodes are checked in test_launch.py.
+"""Receive sockets on 127.0.0.1 by default (loopback.py and its shim): Cyclone alone binds the
+wildcard address; with the shim preloaded, or in a library user's process through the patch of
+Cyclone's bind slot, every socket of the bundled runtime is on loopback; VIZZY_DDS_LAN=1 turns the
+rewrite off. The whole graph's nodes are checked in test_launch.py.
 
 The controls that really bind the wildcard (no shim, the LAN opt-in) run in a private network
 namespace holding only lo (`unshare --net`), so no socket of this test is ever reachable from
@@ -97,11 +98,22 @@ def test_the_shim_keeps_a_cyclone_participant_on_loopback() -> None:
     assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled', LD_PRELOAD=shim) == ['127.0.0.1']
 
 
+@pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
+def test_a_library_user_s_participant_is_on_loopback_without_the_preload() -> None:
+    """pytest, a user's script: nothing re-executed them with LD_PRELOAD, so dds.participant()
+    points Cyclone's own bind slot at the rewrite (issue 28 item 6: before, ['0.0.0.0'])."""
+    assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled') == ['127.0.0.1']
+
+
 @needs_isolation
 @pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
-def test_cyclone_alone_binds_the_wildcard() -> None:
-    """Why the shim exists."""
-    assert ANY_V4 in _run(PARTICIPANT, isolated=True, VIZZY_RUNTIME='bundled')
+def test_cyclone_alone_binds_the_wildcard_and_the_patch_touches_only_cyclone() -> None:
+    """Why the shim exists (the LAN opt-in leaves Cyclone alone), and the patch's reach: a socket
+    the user's own code binds to the wildcard is not rewritten."""
+    assert ANY_V4 in _run(PARTICIPANT, isolated=True, VIZZY_RUNTIME='bundled', VIZZY_DDS_LAN='1')
+    own = PARTICIPANT.replace(
+        'print(', 's = __import__("socket").socket(2, 2); s.bind(("0.0.0.0", 0))\nprint(')
+    assert _run(own, isolated=True, VIZZY_RUNTIME='bundled') == [ANY_V4, '127.0.0.1']
 
 
 def test_an_entry_point_reexecutes_itself_once_with_the_shim() -> None:

@@ -35,7 +35,7 @@ from cyclonedds.topic import Topic
 from rosbags.interfaces import Nodetype
 
 from . import msgs
-from .loopback import lan_mode
+from .loopback import bind_cyclone_to_loopback, lan_mode
 
 ANY_STATE = SampleState.Any | ViewState.Any | InstanceState.Any
 MAX_AUTO_PARTICIPANTS = 60
@@ -93,6 +93,7 @@ def participant() -> DomainParticipant:
             if _closed:
                 raise DdsClosedError('DDS is shut down: the process is exiting')
             did = domain_id()
+            bind_cyclone_to_loopback()   # a library user's process was not preloaded
             if not lan_mode():
                 _domain = Domain(did, loopback_config())
             _participant = DomainParticipant(did, qos=Qos(Policy.Userdata(ENCLAVE_USER_DATA)))

@@ -2,17 +2,17 @@
 
 Cyclone DDS sends only where loopback_config() says (LOOPBACK_V4), but binds its receive sockets
 to the wildcard address whatever the configuration, which would leave a node's ports reachable
-from the LAN. The
-cure is an LD_PRELOAD shim (csrc/loopback_bind.c, built with the package as
-`vizzy_runtime/_loopback_bind*.so`) that turns a bind to the wildcard address into a bind to
-loopback. LD_PRELOAD only acts when a process starts, so:
+from the LAN. The cure is a small C library (csrc/loopback_bind.c, built with the package as
+`vizzy_runtime/_loopback_bind*.so`) whose bind() turns a bind to the wildcard address into a bind
+to loopback. It reaches a process in one of two ways:
 
-- the launcher starts every node with it (preload_env());
-- each program's entry point (the `vizzy` command, a node's console script) calls
-  exec_loopback_bound() first, which re-executes the same command line once with the shim
-  preloaded;
-- a process that imports the runtime as a library (a test, a notebook) keeps Cyclone's binding
-  unless started with `LD_PRELOAD=$(python -m vizzy_runtime.loopback)`.
+- LD_PRELOAD, which acts when a process starts: the launcher starts every node with it
+  (preload_env()), and each program's entry point (the `vizzy` command, a node's console script)
+  calls exec_loopback_bound() first, which re-executes the same command line once with it;
+- any other process that imports the runtime as a library (pytest, a user's script, a notebook):
+  before the bundled runtime makes its DDS participant, bind_cyclone_to_loopback() points the
+  Cyclone library's own bind slot (its PLT entry) at the same rewrite. Only Cyclone's binds
+  change; the process's other sockets are its own business.
 
 Nothing of this applies in LAN mode (VIZZY_DDS_LAN=1; the shim reads it at every bind too) or on the
 real rclpy (its Fast DDS profile binds 127.0.0.1 by itself; the user's own ROS configuration rules).
@@ -21,9 +21,11 @@ This module imports nothing heavy: entry points call it before anything else.
 
 from __future__ import annotations
 
+import ctypes
 import importlib.util
 import os
 import sys
+import threading
 from collections.abc import Mapping, MutableMapping
 from pathlib import Path
 
@@ -83,6 +85,44 @@ def preload_env(env: MutableMapping[str, str]) -> MutableMapping[str, str]:
     if shim is not None and wanted(env) and not preloaded(env):
         env['LD_PRELOAD'] = ' '.join(p for p in (str(shim), env.get('LD_PRELOAD', '')) if p)
     return env
+
+
+# The Cyclone library as ctypes loads it (cyclonedds.internal.load_cyclonedds): libddsc*.so.
+CYCLONE_LIBRARY = 'libddsc'
+_patch_lock = threading.Lock()
+_patched = False
+
+
+def bind_cyclone_to_loopback() -> bool:
+    """Make the loaded Cyclone library bind loopback where it asks for the wildcard address, in
+    this process, from now on (see the module docstring). Call it after Cyclone is loaded and
+    before any participant exists (dds.participant does). True when Cyclone's sockets will be on
+    loopback (also: LAN mode or the real rclpy, where nothing is to be done); False, after a
+    one-line warning, when the slot could not be rewritten."""
+    global _patched
+    with _patch_lock:
+        if _patched or not wanted() or preloaded():
+            return True
+        shim = shim_path()
+        if shim is None:
+            print(f'vizzy: warning: receive sockets bind {WILDCARD_V4} (reachable from the LAN): '
+                  'the loopback-bind shim was not built; install a C compiler and reinstall '
+                  'vizzy_runtime', file=sys.stderr, flush=True)
+            return False
+        # RTLD_LOCAL (ctypes' default): its exported bind() stays out of the process's scope.
+        patch = ctypes.CDLL(str(shim)).vizzy_loopback_patch
+        patch.argtypes = [ctypes.c_char_p]
+        patch.restype = ctypes.c_int
+        result = patch(CYCLONE_LIBRARY.encode())
+        _patched = result > 0
+        if not _patched:
+            why = {-1: f'{CYCLONE_LIBRARY} is not loaded', -2: 'its bind slot is not writable',
+                   -3: 'this architecture is not supported',
+                   0: f'{CYCLONE_LIBRARY} has no bind slot'}.get(result, f'error {result}')
+            print(f'vizzy: warning: receive sockets bind {WILDCARD_V4} (reachable from the LAN): '
+                  f'could not confine Cyclone to loopback ({why}); start the program with '
+                  'LD_PRELOAD=$(python -m vizzy_runtime.loopback)', file=sys.stderr, flush=True)
+        return _patched
 
 
 def exec_loopback_bound() -> None:
