@@ -141,8 +141,8 @@ REPORT_PERIOD_S = 10.0
 # The node declares exactly these; each range is the descriptor's, enforced by the middleware.
 PARAMETERS: tuple[Param, ...] = (
     Param('heartbeat_period_s', 1.0,
-          'While no cloud arrives, publish an empty CylinderArray this often [s], in (0, 3600].',
-          '(0, 3600]'),
+          'While no cloud arrives, publish an empty CylinderArray this often [s], in '
+          '[0.1, 3600].', '[0.1, 3600]'),
     Param('frame_id', 'base_link', 'Frame of the heartbeat CylinderArrays.',
           constraints='not empty'),
     Param('min_points', 50, 'Clouds with fewer finite points are reported and skipped, >= 0.',

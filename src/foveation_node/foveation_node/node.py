@@ -20,7 +20,9 @@ projects onto the principal point; for the simulator's ideal cameras this is the
 i.e. the default is already right for a head that fixates.
 
 While /gaze/state says in_saccade, frames are dropped (saccadic suppression) if
-suppress_during_saccades (counted in frames_suppressed, not as refusals).
+suppress_during_saccades (counted in frames_suppressed and as held 'in saccade' on /diagnostics,
+not as refusals). /diagnostics turns WARN when no foveated image went out for OUTPUT_STALL_S
+although images kept arriving (a saccade that never ends), naming what happened to them.
 
 Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health; logging
 and /diagnostics as its docstring says). The reasons (IMAGE_REASONS, FIXATION_OUTSIDE,
@@ -28,7 +30,7 @@ TOO_SMALL_FOR_LEVELS, UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encodin
 rgb8/bgr8), 'empty image' (zero width or height), 'too large' (beyond max_width x max_height),
 'step shorter than a row', 'size inconsistent with data' (fewer data bytes than height x step),
 'fixation outside image', 'too small for levels' (min(width, height) < 2^levels); on
-/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy > 0; the last good one
+/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy in [1, 1e6] px; the last good one
 stays in use); and, for an exception escaping a callback (node_tools.guarded), 'failed on an
 image: <ExcType>' (or a camera_info, a state). The refused frame is skipped and the node keeps
 running.
@@ -116,6 +118,9 @@ from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reason
     numpy_to_image,
     stamp_seconds,
 )
+from vizzy_runtime.convert import (
+    camera_k as usable_k,
+)
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
@@ -164,6 +169,9 @@ ENCODINGS = ('rgb8', 'bgr8')
 FIXATION_OUTSIDE = 'fixation outside image'
 TOO_SMALL_FOR_LEVELS = 'too small for levels'
 UNUSABLE_K = 'unusable K'
+IN_SACCADE = 'in saccade'        # held, not refused: saccadic suppression
+# A saccade lasts well under a second: no foveated image this long while images arrive is a stall.
+OUTPUT_STALL_S = 3.0
 BANDWIDTH_LOG_PERIOD_S = 10.0
 WARN_PERIOD_S = 5.0
 MAX_LEVELS = 10
@@ -179,10 +187,10 @@ PARAMETERS: tuple[Param, ...] = (
           f'Gaussian sigma of pyramid level 1 [px], in [{PYRAMID_SIGMA_1:.4f}, 64] (the '
           'subsampled pyramid cannot realise less).', f'[{PYRAMID_SIGMA_1!r}, 64]',
           constraints='the lower bound is exact (no 1e-6 edge tolerance)'),
-    Param('fixation_u', -1.0, 'Fixation column [px]; negative: the image centre.',
-          constraints='finite'),
-    Param('fixation_v', -1.0, 'Fixation row [px]; negative: the image centre.',
-          constraints='finite'),
+    Param('fixation_u', -1.0, 'Fixation column [px], in [-16384, 16384] (max_width\'s '
+          'bound); negative: the image centre.', '[-16384, 16384]'),
+    Param('fixation_v', -1.0, 'Fixation row [px], in [-16384, 16384] (max_height\'s '
+          'bound); negative: the image centre.', '[-16384, 16384]'),
     Param('space_variant', True,
           'Foveate (thesis chapter 2). False: the uniform-resolution baseline: the published '
           'image and recognition use the unfoveated frame (a window model: every window of a '
@@ -213,8 +221,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param('top_k', DEFAULT_TOP_K, 'Classes localised per pass (top-k), in [1, 100].',
           '[1, 100]'),
     Param('recognition_rate_hz', 2.0,
-          'Most recognitions (two passes) started per second, in (0, 100]; the newest frame '
-          'wins.', '(0, 100]'),
+          'Most recognitions (two passes) started per second, in [0.01, 100]; the newest frame '
+          'wins.', '[0.01, 100]'),
     Param('recognition_threads', 1, 'Torch CPU threads for recognition, in [1, 64].',
           '[1, 64]'),
     Param('saccades_enabled', True,
@@ -279,11 +287,9 @@ def _k_text(k: Any) -> str:
 
 
 def camera_k(msg: Any) -> tuple[float, ...] | None:
-    """The 9 values of a CameraInfo's K if usable (finite, fx and fy > 0), else None."""
-    k = tuple(float(v) for v in msg.k)
-    if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
-        return k
-    return None
+    """The 9 values of a CameraInfo's K if usable (vizzy_runtime.convert.camera_k), else None."""
+    k = usable_k(msg)
+    return None if k is None else tuple(k.ravel().tolist())
 
 
 def fixation_for(width: int, height: int, u: float, v: float) -> tuple[float, float]:
@@ -358,6 +364,8 @@ class FoveationNode(Node):
         self._image_topic = self.resolve_topic_name(INPUT_TOPIC)
         self._info_topic = self.resolve_topic_name(CAMERA_INFO_TOPIC)
         self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
+        self.input_health.watch_output(self._jpeg_pub.topic_name, [self._image_topic],
+                                       OUTPUT_STALL_S)
         # an exception in a callback is counted as a refusal of its topic (and logged there)
         self._image_sub = self.create_subscription(
             Image, INPUT_TOPIC,
@@ -472,6 +480,7 @@ class FoveationNode(Node):
     def _on_image(self, msg: Any) -> None:
         if self._in_saccade and self._p['suppress_during_saccades']:
             self.frames_suppressed += 1
+            self.input_health.hold(self._image_topic, IN_SACCADE)
             return
         problem = image_problem(msg, self._p['max_width'], self._p['max_height'])
         if problem:
@@ -500,6 +509,7 @@ class FoveationNode(Node):
         compressed.data = (array.array('B', jpeg) if USING_REAL_ROS
                            else np.frombuffer(jpeg, np.uint8))
         self._jpeg_pub.publish(compressed)
+        self.input_health.published(self._jpeg_pub.topic_name)
         self.frames_published += 1
         self.input_health.accept(self._image_topic)
         self._report_bandwidth(image, msg.encoding, len(jpeg), quality, fixation)

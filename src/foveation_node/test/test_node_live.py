@@ -28,6 +28,7 @@ from vizzy_runtime.testing import publish_until, spinning, wait_until
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 GazeState = message('active_vision_msgs/msg/GazeState')
+DiagnosticStatus = message('diagnostic_msgs/msg/DiagnosticStatus')
 Image = message('sensor_msgs/msg/Image')
 CompressedImage = message('sensor_msgs/msg/CompressedImage')
 
@@ -128,6 +129,34 @@ def test_saccades_suppress_output(graph) -> None:
     camera.gaze_pub.publish(GazeState(in_saccade=False))
     assert wait_until(lambda: not foveation._in_saccade, TIMEOUT, spin=executor)
     assert _send_until(camera, executor, msg, lambda: len(camera.images) > before)
+
+
+def test_a_saccade_that_never_ends_is_a_warning_naming_the_held_frames(graph) -> None:
+    """Issue 28 item 4: a gaze state stuck in_saccade stopped /foveation/image while
+    /diagnostics said 'inputs OK'. Held frames are counted, and the stall is a WARN."""
+    camera, foveation, executor = graph
+    health = foveation.input_health
+    msg = numpy_to_image(_scene(), 'rgb8')
+    assert _send_until(camera, executor, msg, lambda: foveation.frames_published > 0)
+    assert health.status().level == DiagnosticStatus.OK
+    camera.gaze_pub.publish(GazeState(in_saccade=True))
+    assert wait_until(lambda: foveation._in_saccade, TIMEOUT, spin=executor)
+    # frames keep arriving; after OUTPUT_STALL_S of the node's clock without output: a stall
+    assert _send_until(camera, executor, msg, lambda: bool(health.stalls()))
+    status = health.status()
+    assert status.level == DiagnosticStatus.WARN, status.message
+    jpeg_topic = foveation._jpeg_pub.topic_name
+    assert status.message.startswith(f'no {jpeg_topic} for '), status.message
+    assert f'while {foveation._image_topic} arrives' in status.message
+    held = health.held()[(foveation._image_topic, fov_node.IN_SACCADE)]
+    assert held == foveation.frames_suppressed >= 2
+    assert 'held (in saccade)' in status.message, status.message
+    values = {kv.key: kv.value for kv in status.values}
+    assert values[f'{foveation._image_topic}: held (in saccade)'] == str(held)
+    # the saccade ends: the output resumes and the warning with it
+    camera.gaze_pub.publish(GazeState(in_saccade=False))
+    assert _send_until(camera, executor, msg, lambda: not health.stalls())
+    assert health.status().level == DiagnosticStatus.OK
 
 
 def test_bad_images_are_dropped_and_the_node_keeps_working(graph, capfd) -> None:

@@ -62,8 +62,10 @@ Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input
 and /diagnostics as its docstring says). The reasons (counter keys; IMAGE_REASONS,
 UNUSABLE_FRAME, UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encoding' (not rgb8/bgr8),
 'empty image' (zero width or height), 'step shorter than a row', 'size inconsistent with data'
-(fewer data bytes than height x step), 'unusable frame' (the tracker's FrameError); on
-/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy > 0; the last good one
+(fewer data bytes than height x step), 'smaller than the detector window' (no person fits: such
+a frame does not reset the tracker as a new size would), 'unusable frame' (the tracker's
+FrameError); on
+/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy in [1, 1e6] px; the last good one
 stays in use); and, for an exception escaping a callback (node_tools.guarded), 'failed on an
 image: <ExcType>' (or a camera_info, a state). A refused image is dropped (frames_dropped), the
 tracks untouched. Changing k_max, s_max, alpha_c, alpha_s or budget_ms keeps the tracks;
@@ -109,6 +111,9 @@ from vizzy_runtime.convert import (  # noqa: F401  the image reasons: this node'
     numpy_to_image,
     stamp_seconds,
 )
+from vizzy_runtime.convert import (
+    camera_k as usable_k,
+)
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, has_subscribers, main_for
 from vizzy_runtime.rate_gate import RateGate
@@ -138,7 +143,11 @@ SOURCE = 'mot_planner'
 ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 UNUSABLE_FRAME = 'unusable frame'
+SMALLER_THAN_WINDOW = 'smaller than the detector window'
 UNUSABLE_K = 'unusable K'
+RATE_CAP = 'max_rate_hz'           # held, not refused: frames beyond the rate cap
+# /mot/tracks silent this long (node clock) while images arrive: a diagnostics WARN
+OUTPUT_STALL_S = 3.0
 NOMINAL_FPS = 30.0
 # The floor in base_link: -vizzy_vision.kinematics.WAIST_HEIGHT (the waist joint's height
 # in vizzy_description), copied so that the node does not depend on the simulator's package.
@@ -161,8 +170,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param('max_rate_hz', 0.0, 'Most frames tracked per second, counted in the images\' stamps '
           '(the others are dropped before any work; 0: every frame), in [0, 1000].',
           '[0, 1000]'),
-    Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in (0, 1000].',
-          '(0, 1000]'),
+    Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in [0.1, 1000].',
+          '[0.1, 1000]'),
     Param('horizon', DEPLOYED['horizon'], 'Planning horizon T in frames, the depth of the MCTS '
           'search (section 5.3.5; the thesis used 3), in [1, 8].', '[1, 8]'),
     Param('full_frame_period', DEPLOYED['full_frame_period'], 'Fewest frames between two '
@@ -204,7 +213,7 @@ PARAMETERS: tuple[Param, ...] = (
           'saccades), in [0, 1000].', '[0, 1000]'),
     Param('gaze_depth_m', 3.0, 'Nominal depth of the fixation point along the group\'s ray '
           '[m], in (0.1, 100].', '(0.1, 100]'),
-    Param('gaze_rate_hz', 2.0, 'Most gaze commands per second, in (0, 30].', '(0, 30]'),
+    Param('gaze_rate_hz', 2.0, 'Most gaze commands per second, in [0.01, 30].', '[0.01, 30]'),
     Param('gaze_min_hits', 3, 'Only tracks detected at least this many times steer the gaze, '
           'in [1, 1000].', '[1, 1000]'),
     Param('gaze_min_age', 5, 'Only tracks at least this many frames old steer the gaze, in '
@@ -263,11 +272,9 @@ def _k_text(k: Any) -> str:
 
 
 def camera_k(msg: Any) -> list[float] | None:
-    """The 9 values of a CameraInfo's K if usable (finite, fx and fy > 0), else None."""
-    k = [float(v) for v in msg.k]
-    if len(k) == 9 and k[0] > 0 and k[4] > 0 and all(math.isfinite(v) for v in k):
-        return k
-    return None
+    """The 9 values of a CameraInfo's K if usable (vizzy_runtime.convert.camera_k), else None."""
+    k = usable_k(msg)
+    return None if k is None else k.ravel().tolist()
 
 
 def make_hog_detector(params: dict[str, Any]) -> Detector:
@@ -342,6 +349,8 @@ class MotPlannerNode(Node):
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         # resolved names, for log lines
         self._image_topic = self.resolve_topic_name(IMAGE_TOPIC)
+        self.input_health.watch_output(self._tracks_pub.topic_name, [self._image_topic],
+                                       self._output_stall_s)
         self._info_topic = self.resolve_topic_name(CAMERA_INFO_TOPIC)
         self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
         # an exception in a callback is counted as a refusal of its topic (and logged there)
@@ -460,6 +469,7 @@ class MotPlannerNode(Node):
     def _on_image(self, msg: Any) -> None:
         if not self._rate_gate.take(stamp_seconds(msg.header.stamp), self._p['max_rate_hz']):
             self.frames_skipped += 1
+            self.input_health.hold(self._image_topic, RATE_CAP)
             return
         problem = image_problem(msg)
         if problem:
@@ -472,6 +482,13 @@ class MotPlannerNode(Node):
                    cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else image)
         tracker = self._tracker
         size = (int(image.shape[1]), int(image.shape[0]))
+        window = tracker.detector.geometry
+        if size[0] < window.window_w or size[1] < window.window_h:
+            self.frames_dropped += 1
+            self.input_health.refuse(self._image_topic, SMALLER_THAN_WINDOW,
+                                     f'{size[0]}x{size[1]} < {window.window_w:g}x'
+                                     f'{window.window_h:g}')
+            return
         if tracker.image_size is not None and size != tracker.image_size:
             self._warn_throttled(
                 'size', f'{self._image_topic}: frame size changed from {tracker.image_size[0]}x'
@@ -494,6 +511,7 @@ class MotPlannerNode(Node):
         self._update_bookkeeping(result)
         persons = self._check_persons(msg.header, result, pose)
         self._tracks_pub.publish(self._track_array(msg.header, result, persons))
+        self.input_health.published(self._tracks_pub.topic_name)
         self._attention_pub.publish(self._attention(msg.header, result, size))
         if self._p['publish_overlay'] and has_subscribers(self._overlay_pub):
             self._overlay_pub.publish(numpy_to_image(
@@ -501,6 +519,11 @@ class MotPlannerNode(Node):
         if self._p['publish_gaze']:
             self._send_gaze(msg.header, result, pose, persons)
         self.input_health.accept(self._image_topic)
+
+    def _output_stall_s(self) -> float:
+        """How long /mot/tracks may be silent while images arrive: three capped frames at least."""
+        rate = self._p['max_rate_hz']
+        return max(OUTPUT_STALL_S, 3.0 / rate) if rate > 0 else OUTPUT_STALL_S
 
     def _update_frame_period(self, stamp: Any) -> None:
         t = stamp_seconds(stamp)

@@ -117,6 +117,11 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         ('size inconsistent with data', _small(height=8)),    # 96 bytes, 192 needed
         ('empty image', _small(height=0)),
         ('step shorter than a row', _small(step=10)),        # a row of 8 rgb8 px is 24 bytes
+        # issue 28 item 8: a 1x100000 frame reset the tracker (a new size); no person fits it
+        ('smaller than the detector window',
+         numpy_to_image(np.zeros((100000, 1, 3), np.uint8), 'rgb8')),
+        ('smaller than the detector window',
+         numpy_to_image(np.zeros((1, 100000, 3), np.uint8), 'rgb8')),
     ]
     for reason, msg in bad_images:
         assert refused_once(mot, executor, lambda msg=msg: camera.image_pub.publish(msg),
@@ -139,12 +144,13 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd) -> None:
         (image_topic, 'size inconsistent with data'): 1,
         (image_topic, 'empty image'): 1,
         (image_topic, 'step shorter than a row'): 1,
+        (image_topic, 'smaller than the detector window'): 2,
         (image_topic, 'failed on an image: RuntimeError'): 1,
         (info_topic, 'unusable K'): 1,
     }
     # the refused images touched nothing: no frame processed, no size change, no reset
     assert mot.frames_processed == processed and mot._tracker.image_size == size
-    assert mot.frames_dropped == 5 and mot.resets == 0
+    assert mot.frames_dropped == 7 and mot.resets == 0
 
     # the next good image is processed: accepted and tracked
     tracks, done = len(camera.tracks), accepted(image_topic)

@@ -114,11 +114,11 @@ HOLD_RESEND_S = 0.1
 # The node declares exactly these; each range is the descriptor's, enforced by the middleware.
 PARAMETERS: tuple[Param, ...] = (
     Param('control_rate_hz', 100.0,
-          f'Rate of joint position setpoints on {JOINT_COMMANDS_TOPIC} [Hz], in (0, 1000].',
-          '(0, 1000]'),
+          f'Rate of joint position setpoints on {JOINT_COMMANDS_TOPIC} [Hz], in [1, 1000] '
+          '(slower, a saccade would take minutes to settle).', '[1, 1000]'),
     Param('state_rate_hz', 30.0,
-          f'Rate of {STATE_TOPIC} [Hz], in (0, 1000]; a state also goes out after every '
-          'command.', '(0, 1000]'),
+          f'Rate of {STATE_TOPIC} [Hz], in [0.1, 1000]; a state also goes out after every '
+          'command.', '[0.1, 1000]'),
     Param('eye_pan_comfort_rad', 0.35,
           'Neck/eye split: the eyes take a pan (version) up to this on their own, the neck pan '
           'the rest [rad], in [0, 1.6].', '[0, 1.6]'),

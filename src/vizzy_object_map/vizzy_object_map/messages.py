@@ -27,14 +27,6 @@ def stamp_msg(t: float) -> Any:
     return TimeMsg(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
 
-def camera_k(msg: Any) -> np.ndarray | None:
-    """K (3, 3) of a CameraInfo if usable (finite, fx and fy > 0), else None."""
-    k = np.asarray([float(v) for v in msg.k], np.float64)
-    if k.size != 9 or not np.isfinite(k).all() or k[0] <= 0 or k[4] <= 0:
-        return None
-    return k.reshape(3, 3)
-
-
 def _covariance6(cov3: np.ndarray) -> list[float]:
     """PoseWithCovariance's 6x6 (row-major) from a position covariance; orientation unknown."""
     out = np.zeros((6, 6))

@@ -76,12 +76,11 @@ from vizzy_object_map.messages import (
     Detection3DArray,
     MapObjectArray,
     MarkerArray,
-    camera_k,
     detection3d_array,
     map_object_array,
     marker_array,
 )
-from vizzy_runtime.convert import ConversionError, pointcloud2_to_array, stamp_seconds
+from vizzy_runtime.convert import ConversionError, camera_k, pointcloud2_to_array, stamp_seconds
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import Node, message, qos_profile_latched
@@ -127,7 +126,7 @@ PARAMETERS: tuple[Param, ...] = (
     Param('map_frame', 'base_link', 'Frame of the map (fixed to the robot, z up).',
           constraints='not empty'),
     Param('publish_period_s', 0.5, 'Publish the map (and forget faded objects) this often [s], '
-          'in (0, 60].', '(0, 60]'),
+          'in [0.05, 60].', '[0.05, 60]'),
     Param('association_radius_m', _DEFAULTS.association_radius_m,
           'An observation within this of an object\'s centre is that object [m], in (0, 1].',
           '(0, 1]'),
@@ -158,7 +157,7 @@ PARAMETERS: tuple[Param, ...] = (
           '[1, 1000]'),
     Param('tentative_timeout_s', _DEFAULTS.tentative_timeout_s,
           'Objects neither established nor confirmed are forgotten this long after they were '
-          'last seen [s], in (0, 3600].', '(0, 3600]'),
+          'last seen [s], in [0.1, 3600].', '[0.1, 3600]'),
     Param('reject_label', _DEFAULTS.reject_label,
           'The recogniser\'s "nothing here" label: it names nothing and counts against names.'),
     Param('use_stereo_depth', False,

@@ -7,6 +7,7 @@ from vizzy_runtime import msgs
 from vizzy_runtime.convert import (
     ConversionError,
     array_to_pointcloud2,
+    camera_k,
     image_to_numpy,
     numpy_to_image,
     pointcloud2_to_array,
@@ -95,3 +96,20 @@ def test_image_refusal_names_the_reason_and_the_values():
         raise ValueError('no such layout')
 
     assert image_refusal(ok, rgb, convert=refuse) == (UNCONVERTIBLE, 'no such layout')
+
+
+def test_camera_k_refuses_focal_lengths_no_camera_has():
+    """Issue 28 item 8: fy = 1e-300 passed a '> 0' check and put a saccade 0.024 m from the
+    eyes, with overflow warnings on stderr."""
+    from types import SimpleNamespace
+
+    def info(fx: float, fy: float, cx: float = 320.0, cy: float = 240.0) -> SimpleNamespace:
+        return SimpleNamespace(k=[fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0])
+
+    k = camera_k(info(525.0, 525.0))
+    assert k is not None and k.shape == (3, 3) and k[1, 1] == 525.0 and k[0, 2] == 320.0
+    for bad in (info(525.0, 1e-300), info(1e-300, 525.0), info(525.0, 0.0), info(-1.0, 525.0),
+                info(525.0, 1e7), info(525.0, float('nan')), info(525.0, 525.0, cx=1e300),
+                SimpleNamespace(k=[525.0] * 8)):
+        assert camera_k(bad) is None, bad.k
+    assert camera_k(info(1.0, 1e6)) is not None                      # the bounds are inclusive

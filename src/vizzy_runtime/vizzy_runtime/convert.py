@@ -36,6 +36,26 @@ def stamp_seconds(stamp: Any) -> float:
     return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
 
 
+# A focal length [px] outside these is no camera: 1e-300 passed a "> 0" check and put a saccade
+# 0.024 m from the eyes (issue 28 item 8); the widest lens at 1 px wide or 1e6 px (a 0.06 deg
+# field at VGA) bound what a real camera_info can say.
+MIN_FOCAL_PX = 1.0
+MAX_FOCAL_PX = 1e6
+
+
+def camera_k(msg: Any) -> np.ndarray | None:
+    """K (3x3, float64) of a sensor_msgs/CameraInfo if usable, else None: 9 finite values, fx and
+    fy in [MIN_FOCAL_PX, MAX_FOCAL_PX], the principal point within MAX_FOCAL_PX of the origin."""
+    k = np.asarray([float(v) for v in msg.k], np.float64)
+    if k.size != 9 or not np.isfinite(k).all():
+        return None
+    if not (MIN_FOCAL_PX <= k[0] <= MAX_FOCAL_PX and MIN_FOCAL_PX <= k[4] <= MAX_FOCAL_PX):
+        return None
+    if abs(k[2]) > MAX_FOCAL_PX or abs(k[5]) > MAX_FOCAL_PX:
+        return None
+    return k.reshape(3, 3)
+
+
 def _byte_view(data: Any) -> np.ndarray:
     return (np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray)
             else data.view(np.uint8))

@@ -146,12 +146,12 @@ PARAMETERS: tuple[Param, ...] = (
           '[0, inf)', read_only=True),
     Param('pedestrian_count', 4, 'Walkers in the pedestrians scene, in [1, 20] (read-only).',
           '[1, 20]', read_only=True),
-    Param('rate_hz', 15.0, 'Rate of the stereo images and their camera_info [Hz], in (0, 60].',
-          '(0, 60]'),
+    Param('rate_hz', 15.0, 'Rate of the stereo images and their camera_info [Hz], in '
+          '[0.1, 60].', '[0.1, 60]'),
     Param('rgbd_rate_hz', 5.0, 'Rate of the RGB-D image, depth, points and camera_info [Hz], '
           'in [0, 30]; 0 switches the RGB-D sensor off.', '[0, 30]'),
-    Param('joint_state_rate_hz', 100.0, 'Rate of /joint_states and /tf [Hz], in (0, 500].',
-          '(0, 500]'),
+    Param('joint_state_rate_hz', 100.0, 'Rate of /joint_states and /tf [Hz], in [1, 500].',
+          '[1, 500]'),
     Param('width', 640, 'Eye camera image width [px] (read-only).', '[16, 4096]',
           read_only=True),
     Param('height', 480, 'Eye camera image height [px] (read-only).', '[16, 4096]',
@@ -178,12 +178,12 @@ PARAMETERS: tuple[Param, ...] = (
     Param('render_backend', 'auto', 'OpenGL for rendering: auto (EGL, else OSMesa), egl or '
           'osmesa (read-only).', choices=('auto', 'egl', 'osmesa'), read_only=True),
     Param('ground_truth_rate_hz', 1.0, 'Rate of republishing /sim/ground_truth/objects [Hz], '
-          'in (0, 100].', '(0, 100]'),
+          'in [0.01, 100].', '[0.01, 100]'),
     Param('publish_clock', True,
           'Publish /clock (simulated time starting at 0) and stamp messages with it '
           '(read-only). The sim itself must run with use_sim_time false.', read_only=True),
-    Param('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in (0, 1000] (read-only).',
-          '(0, 1000]', read_only=True),
+    Param('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in [10, 1000] (read-only; slower, '
+          'sim-time timers would fire in bursts).', '[10, 1000]', read_only=True),
     Param('lockstep', False,
           'Advance simulated time only as far as asked on sim/step, one /clock tick at a time, '
           'and say how far on sim/stepped (read-only). For benchmarks: whoever asks waits for '
