@@ -24,6 +24,7 @@ from vizzy_runtime.launcher import (
     find_entry_point,
     graph_namespace,
     load_graph,
+    names_taken,
     node_command,
     node_namespace,
 )
@@ -236,6 +237,32 @@ def test_node_list_warns_of_nodes_that_share_a_name():
     finally:
         for twin in twins:
             twin.kill()
+
+
+def test_the_launcher_finds_the_graph_s_names_taken_before_it_starts():
+    """Issue 28 item 7: a second graph on the domain was silent chaos (two /clock sources, names
+    listed once). Before starting, `vizzy launch` names the nodes whose names are taken."""
+    script = ('import time\n'
+              'from vizzy_runtime.ros import rclpy\n'
+              'rclpy.init()\n'
+              'nodes = [rclpy.create_node(n) for n in ("sim", "gaze_controller")]\n'
+              'time.sleep(60)\n')
+    env = {**os.environ, 'VIZZY_RUNTIME': 'bundled'}
+    ours = Launcher(load_graph(default_graph_file())).full_names()
+    assert names_taken(ours, 0.5) == []            # nobody there: no warning
+    other = subprocess.Popen([sys.executable, '-c', script], env=env)
+    try:
+        taken: list[str] = []
+        for _ in range(10):         # the other process's discovery on a loaded machine
+            taken = names_taken(ours, 1.0)
+            if taken:
+                break
+        assert taken == ['/gaze_controller', '/sim'], taken
+        # in its own namespace the graph's names are free
+        assert names_taken(Launcher(load_graph(default_graph_file()),
+                                    namespace='robot2').full_names(), 0.5) == []
+    finally:
+        other.kill()
 
 
 def test_default_transport_stays_on_loopback():

@@ -355,6 +355,16 @@ class Launcher:
     STANDBY_AFTER_S = 30.0
     STANDBY_STAGGER_S = 3.0
 
+    def full_names(self) -> list[str]:
+        """The full name (namespace and name) of each node of the graph, as it will run."""
+        out = []
+        for spec in self.graph.nodes:
+            ns = node_namespace(self.namespace, spec.namespace).rstrip('/')
+            if ns and not ns.startswith('/'):
+                ns = '/' + ns
+            out.append(f'{ns}/{spec.name}')
+        return out
+
     def start(self) -> None:
         """Start every node (and the supervisor that reports exits and respawns)."""
         commands = [(spec, node_command(spec, self.graph.use_sim_time, self.namespace,
@@ -568,18 +578,43 @@ class Launcher:
                 and n not in self.escalated}
 
 
+# How long the launcher listens to the domain before starting a graph (more while a peer found
+# is still being discovered): a second graph there is found in well under a second on loopback.
+NAME_CHECK_WAIT_S = 1.0
+
+
+def names_taken(names: list[str], wait_s: float = NAME_CHECK_WAIT_S) -> list[str]:
+    """Which of these full node names a node on the domain already has (a second graph, a second
+    sim: their topics and /clock would mix with ours)."""
+    from .peers import discover_nodes, full_name
+    found = {full_name(info) for info in discover_nodes(wait_s)}
+    return sorted(set(names) & found)
+
+
 def launch(graph_file: str | Path | None = None, duration: float | None = None,
            env: dict[str, str] | None = None, namespace: str = '',
-           grace_s: float = 5.0, view_port: int | None = None) -> Launcher:
+           grace_s: float = 5.0, view_port: int | None = None,
+           check_names: bool = True) -> Launcher:
     """Run a graph (in namespace, '' for the root) until duration, Ctrl-C, SIGTERM or SIGHUP and
     stop it cleanly (SIGINT, then SIGTERM to nodes still running grace_s seconds later); returns
     the stopped Launcher (exit codes: poll(); failures: failed(); escalations: escalated).
-    view_port: serve the graph to Foxglove on that port meanwhile (live_view.py); None: no view."""
+    view_port: serve the graph to Foxglove on that port meanwhile (live_view.py); None: no view.
+    check_names: first warn (one line) if nodes on the domain already have the graph's names."""
     graph = load_graph(graph_file or default_graph_file())
     launcher = Launcher(graph, env=env, namespace=namespace, grace_s=grace_s)
     view = None
     with stop_on_signals():
         try:
+            if check_names:
+                taken = names_taken(launcher.full_names())
+                if taken:
+                    launcher.output.write(
+                        f'[WARNING] [launch]: node names already taken on ROS_DOMAIN_ID '
+                        f'{os.environ.get("ROS_DOMAIN_ID", "0")}: {", ".join(taken)}; another '
+                        'graph runs there, and two graphs on one domain mix their topics and '
+                        'clocks: stop it, or start this one with another ROS_DOMAIN_ID or '
+                        '--namespace\n')
+                    launcher.output.flush()
             if view_port is not None:
                 from .live_view import start_or_warn
                 view = start_or_warn(view_port)
