@@ -395,7 +395,8 @@ def test_bad_inputs_raise_bag_error(tmp_path: Path) -> None:
     middle = chunk.chunk_start_offset + chunk.chunk_length // 2
     data[middle:middle + 16] = bytes(16)  # damage compressed data inside a finished file
     (bag / 'bag_0.mcap').write_bytes(bytes(data))
-    assert 'corrupt MCAP data' in error(lambda: list(BagReader(bag).messages()))
+    damaged = BagReader(bag)  # not an error: that chunk is skipped (test_bag_corrupt.py)
+    assert list(damaged.messages()) == [] and len(damaged.corrupt_chunks) == 1
 
     with BagWriter(tmp_path / 'new') as writer:
         assert "unknown message type 'foo_msgs/msg/Nope'" in error(

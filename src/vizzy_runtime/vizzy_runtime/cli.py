@@ -7,8 +7,8 @@
     vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
     vizzy node list
     vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
-    vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE] | info <bag>
-              | reindex <bag>
+    vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE]
+              | info <bag> [--check] | reindex <bag>
 
 Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
 the same topics. Errors are one line naming what and where; the exit code is non-zero.
@@ -378,31 +378,70 @@ def _print_counts(counts: dict[str, int]) -> None:
 
 
 def cmd_bag_record(ns: argparse.Namespace) -> int:
-    from .bag import Recorder, default_bag_name
     if not ns.all and not ns.topics:
         return _die('bag record: give topics to record or -a/--all (as ros2 bag record)')
-    topics = None if ns.all else ns.topics
-    _print_counts(Recorder(ns.output or default_bag_name(), topics, exclude=ns.exclude_topics or (),
-                           include_hidden=ns.include_hidden).run(ns.duration))
+    # SIGINT/SIGTERM at any moment from here ends the recording with the bag finished. Until the
+    # Recorder exists (the bag package's imports take seconds on a loaded machine) a signal is
+    # only noted and stops it as soon as it does; Python's own handler would raise
+    # KeyboardInterrupt there instead: status 0, no bag, not a word (issue 28 item 8).
+    recorder: Any = None
+    noted: list[int] = []
+
+    def on_signal(signum: int, frame: Any) -> None:
+        noted.append(signum)
+        if recorder is not None:
+            recorder.handle_signal(signum, frame)
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        from .bag import Recorder, default_bag_name
+        recorder = Recorder(ns.output or default_bag_name(), None if ns.all else ns.topics,
+                            exclude=ns.exclude_topics or (), include_hidden=ns.include_hidden)
+        if noted:
+            recorder.stop()
+        counts = recorder.run(ns.duration, handle_signals=False)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    _print_counts(counts)
     return 0
 
 
 def cmd_bag_play(ns: argparse.Namespace) -> int:
     from .bag import Player
-    _print_counts(Player(ns.bag, rate=ns.rate, topics=ns.topics, loop=ns.loop,
-                         wait_for_subscribers=ns.wait_for_subscribers).run())
+    from .bag.reader import lost_messages
+    player = Player(ns.bag, rate=ns.rate, topics=ns.topics, loop=ns.loop,
+                    wait_for_subscribers=ns.wait_for_subscribers)
+    _print_counts(player.run())
+    skipped = player.corrupt_chunks  # each was also named in a warning when it was skipped
+    if skipped:
+        print(f'skipped corrupt chunks: {len(skipped)} ({lost_messages(skipped)})')
     return 0
 
 
 def cmd_bag_info(ns: argparse.Namespace) -> int:
-    from .bag import bag_info
+    from .bag import bag_check, bag_info
     print(bag_info(ns.bag), end='')
-    return 0
+    if not ns.check:
+        return 0
+    result = bag_check(ns.bag)
+    print('\n'.join(result.lines()))
+    return 0 if result.ok else 1
 
 
 def cmd_bag_reindex(ns: argparse.Namespace) -> int:
-    from .bag import reindex
-    reindex(ns.bag)
+    from .bag import reindex_bag
+    from .bag.reader import lost_messages
+    done = reindex_bag(ns.bag)
+    meta = done.metadata
+    line = (f'{ns.bag}: rebuilt metadata.yaml: {meta.message_count} messages on '
+            f'{len(meta.topics)} topics in {len(meta.files)} file(s)')
+    if done.recovered:
+        line += f'; finished {len(done.recovered)} unfinished file(s)'
+    if done.dropped:  # the bag is whole again: exit 0 (the warnings above name each chunk)
+        line += (f'; dropped {len(done.dropped)} corrupt chunk(s) with '
+                 f'{lost_messages(done.dropped)}')
+    print(line)
     return 0
 
 
@@ -539,22 +578,31 @@ def build_parser() -> argparse.ArgumentParser:
     play.set_defaults(func=cmd_bag_play)
     info = bag.add_parser('info')
     info.add_argument('bag')
+    info.add_argument('--check', action='store_true',
+                      help='also decompress every chunk and check its CRC (exit 1 if damaged)')
     info.set_defaults(func=cmd_bag_info)
-    reindex = bag.add_parser('reindex', help='repair a killed recording and rebuild metadata.yaml')
+    reindex = bag.add_parser('reindex', help='repair a killed recording, drop corrupt chunks and '
+                             'rebuild metadata.yaml')
     reindex.add_argument('bag')
     reindex.set_defaults(func=cmd_bag_reindex)
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
+def _bag_error() -> type[Exception]:
+    # imported on the error path only: before `bag record` has its Ctrl-C handler, a second of
+    # importing the bag package is a second in which Ctrl-C ends it with no bag (issue 28 item 8)
     from .bag import BagError
+    return BagError
+
+
+def main(argv: list[str] | None = None) -> int:
     ns = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format='[%(levelname)s] %(message)s')
     try:
         return ns.func(ns)
     except KeyboardInterrupt:
         return 0
-    except (BagError, ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
+    except (_bag_error(), ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
         return _die(str(err))
 
 

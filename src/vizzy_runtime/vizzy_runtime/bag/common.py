@@ -10,7 +10,9 @@ Formats follow rosbag2_storage's yaml.hpp / qos.cpp (Jazzy):
 
 from __future__ import annotations
 
+import contextlib
 import os
+import select
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -37,6 +39,45 @@ _LEGACY_INFINITE = {(0x7FFFFFFF, 0xFFFFFFFF), (0x7FFFFFFF, 0x7FFFFFFF), (9223372
 
 class BagError(Exception):
     """A bag cannot be read or written; the message names the path and the problem."""
+
+
+class StopRequest:
+    """A stop flag that a signal handler may set wherever the main thread is, with a wait()
+    that ends as soon as it is set (from the handler, or from any thread).
+
+    threading.Event will not do: its set() takes the Event's lock, which the main thread holds
+    around the bookkeeping of Event.wait(); a SIGINT handler calling set() at that moment waits
+    for ever for its own thread, and so does every later Ctrl-C (a recording that would not
+    stop). Here set() assigns a flag and writes a byte to a pipe that wait() selects on: no
+    lock, nothing that can block.
+    """
+
+    def __init__(self) -> None:
+        self._set = False
+        self._read_fd, self._write_fd = os.pipe()
+        os.set_blocking(self._write_fd, False)
+
+    def set(self) -> None:
+        self._set = True  # before the byte: whoever wakes up sees the flag
+        with contextlib.suppress(OSError):  # pipe full: a wake-up is pending anyway
+            os.write(self._write_fd, b'\0')
+
+    def is_set(self) -> bool:
+        return self._set
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Until set() or `timeout` seconds (None: no limit); True if set."""
+        if not self._set and (timeout is None or timeout > 0):
+            # a signal handled during select() that calls set() makes the retried select return
+            select.select([self._read_fd], [], [], timeout)
+        return self._set
+
+    def __del__(self) -> None:
+        # only when nothing can call set() any more: the descriptors cannot be reused under it
+        for fd in (getattr(self, '_read_fd', -1), getattr(self, '_write_fd', -1)):
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
 
 
 def one_line(exc: BaseException) -> str:

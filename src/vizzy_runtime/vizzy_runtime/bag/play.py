@@ -13,7 +13,8 @@ from types import FrameType
 from typing import Any
 
 from .. import msgs
-from .common import BagError, QosProfile, TopicInfo, one_line
+from .chunks import CorruptChunk
+from .common import BagError, QosProfile, StopRequest, TopicInfo, one_line
 from .reader import BagReader
 
 log = logging.getLogger('vizzy_runtime.bag')
@@ -73,6 +74,8 @@ class Player:
 
     Each topic gets one DDS writer with the recorded offered QoS; CDR bytes are written as
     stored. run() blocks until done, stop() or SIGINT/SIGTERM; it returns counts per topic.
+    A corrupt chunk (does not decompress, fails its CRC) is skipped with a one-line warning and
+    the rest is played; corrupt_chunks lists those skipped.
     """
 
     def __init__(self, bag_dir: str | os.PathLike[str], *, rate: float = 1.0,
@@ -91,11 +94,16 @@ class Player:
             raise BagError(f'{self.reader.path}: no topic(s) {", ".join(missing)} in the bag '
                            f'(it has {", ".join(sorted(available)) or "none"})')
         self.topics: list[TopicInfo] = [available[n] for n in names]
-        self._stop = threading.Event()
+        self._stop = StopRequest()  # set from signal handlers: threading.Event is not safe there
 
     def stop(self) -> None:
         """Ask run() to finish (thread- and signal-safe)."""
         self._stop.set()
+
+    @property
+    def corrupt_chunks(self) -> list[CorruptChunk]:
+        """Chunks skipped so far because they did not decode (their messages were not played)."""
+        return self.reader.corrupt_chunks
 
     def run(self, *, handle_signals: bool = True) -> dict[str, int]:
         """Play (once, or looping) and return the messages published per topic.

@@ -9,6 +9,7 @@ A file still locked by a live BagWriter is only read, never rewritten.
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import heapq
 import io
@@ -23,13 +24,25 @@ from types import TracebackType
 from typing import Any
 
 from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
+from mcap.records import Channel, Chunk, Header, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
+from mcap.summary import Summary
 from mcap.writer import CompressionType, Writer
 
+from .chunks import (
+    CHUNK_ERRORS,
+    DECODE_ERRORS,
+    ChunkCheck,
+    CorruptChunk,
+    check_chunks,
+    chunk_indexes,
+    decode_chunk,
+    error_text,
+    indexed_messages,
+    read_summary,
+)
 from .common import (
     INFINITE_NS,
     MCAP_MAGIC,
@@ -39,6 +52,7 @@ from .common import (
     BagMetadata,
     FileInfo,
     TopicInfo,
+    dump_yaml,
     mcap_has_footer,
     one_line,
     parse_qos_profiles,
@@ -46,15 +60,9 @@ from .common import (
 
 log = logging.getLogger('vizzy_runtime.bag')
 
-# What a damaged file can raise from mcap / zstandard / lz4 / struct while being decoded.
-_DECODE_ERRORS: tuple[type[BaseException], ...] = (McapError, struct.error, ValueError,
-                                                    KeyError, EOFError, RuntimeError)
-try:
-    import zstandard
-    _DECODE_ERRORS += (zstandard.ZstdError,)
-except ImportError:  # pragma: no cover - zstandard is a pinned dependency
-    pass
+_DECODE_ERRORS = DECODE_ERRORS
 _READ_ERRORS: tuple[type[BaseException], ...] = (OSError, *_DECODE_ERRORS)
+_COMPRESSION = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4}
 
 
 # --- sequential scan (files without summary) ----------------------------------------------------
@@ -69,7 +77,8 @@ class _Scan:
     counts: dict[int, int] = field(default_factory=dict)
     start: int = INFINITE_NS
     end: int = 0
-    chunks: int = 0
+    chunks: int = 0   # complete chunks read
+    corrupt: list[CorruptChunk] = field(default_factory=list)  # complete chunks skipped
     problem: str = ''  # why the scan stopped early ('' when it did not)
 
     @property
@@ -77,9 +86,23 @@ class _Scan:
         return sum(self.counts.values())
 
 
-def _scan(path: Path, scan: _Scan) -> Iterator[Schema | Channel | Message | Metadata]:
+def _scan(path: Path, scan: _Scan, on_corrupt: Callable[[CorruptChunk], None] | None = None
+          ) -> Iterator[Schema | Channel | Message | Metadata]:
     """Yield the data records of an MCAP file in file order (a chunk's messages sorted by log
-    time), stopping cleanly before the first record that is cut short or does not decode."""
+    time), stopping cleanly before the first record that is cut short or does not decode.
+    A complete chunk that does not decompress, fails its CRC or does not parse is skipped
+    instead (its record length says where the next record starts): it goes to scan.corrupt
+    and on_corrupt, with the messages its message index records (which follow it) list."""
+    skipped: CorruptChunk | None = None  # the chunk just skipped, its message indexes to count
+
+    def report_skipped() -> None:
+        nonlocal skipped
+        if skipped is not None:
+            scan.corrupt.append(skipped)
+            if on_corrupt is not None:
+                on_corrupt(skipped)
+            skipped = None
+
     with open(path, 'rb') as f:
         size = os.fstat(f.fileno()).st_size
         magic = f.read(8)
@@ -93,6 +116,7 @@ def _scan(path: Path, scan: _Scan) -> Iterator[Schema | Channel | Message | Meta
             head = f.read(9)
             if len(head) < 9:  # at a record boundary nothing is lost; else a header was cut
                 scan.problem = f'incomplete record header at byte {pos}' if head else ''
+                report_skipped()
                 return
             opcode, length = struct.unpack('<BQ', head)
             name = Opcode(opcode).name.lower() if opcode in Opcode._value2member_map_ else \
@@ -100,15 +124,30 @@ def _scan(path: Path, scan: _Scan) -> Iterator[Schema | Channel | Message | Meta
             if pos + 9 + length > size:
                 scan.problem = (f'incomplete {name} record at byte {pos}: '
                                 f'{size - pos - 9} of {length} bytes')
+                report_skipped()
                 return
             body = f.read(length)
+            if opcode == Opcode.MESSAGE_INDEX and skipped is not None:
+                try:
+                    listed = len(MessageIndex.read(ReadDataStream(io.BytesIO(body))).records)
+                    skipped = dataclasses.replace(skipped, messages=(skipped.messages or 0)
+                                                  + listed)
+                except _DECODE_ERRORS:
+                    pass
+            else:
+                report_skipped()
             try:
                 records = _parse(opcode, body)
-            except _DECODE_ERRORS as exc:
-                scan.problem = f'corrupt {name} record at byte {pos}: {one_line(exc)}'
-                return
-            if opcode == Opcode.CHUNK:
-                scan.chunks += 1
+            except CHUNK_ERRORS as exc:
+                if opcode != Opcode.CHUNK:
+                    scan.problem = f'corrupt {name} record at byte {pos}: {one_line(exc)}'
+                    return
+                number = scan.chunks + len(scan.corrupt) + 1
+                skipped = CorruptChunk(path, number, 0, pos, None, error_text(exc))
+                records = []
+            else:
+                if opcode == Opcode.CHUNK:
+                    scan.chunks += 1
             for rec in records:
                 if isinstance(rec, Header):
                     scan.header = rec
@@ -126,6 +165,7 @@ def _scan(path: Path, scan: _Scan) -> Iterator[Schema | Channel | Message | Meta
                 yield rec
             pos += 9 + length
             if opcode in (Opcode.DATA_END, Opcode.FOOTER):  # the data section is complete
+                report_skipped()
                 return
 
 
@@ -160,17 +200,16 @@ class _CannotRepair(BagError):
         self.reason = reason
 
 
-def _repair(path: Path) -> _Scan:
-    """Rewrite an unfinished MCAP file with everything its complete records hold, then a summary
-    and footer. The original is replaced atomically, only once the new file is on disk."""
+def _rewrite(path: Path, copy: Callable[[io.BufferedWriter], None]) -> None:
+    """Replace an MCAP file with what copy() writes to a new one: atomically, only once the new
+    file is on disk, never while a live BagWriter holds the file."""
     tmp = path.with_name(path.name + '.recovering')
     with open(path, 'rb') as lock_holder:
         if not _try_lock(lock_holder):
             raise _CannotRepair(path, 'still being recorded (locked by a live writer)')
-        scan = _Scan()
         try:
             with open(tmp, 'wb') as out:
-                _copy_records(path, scan, out)
+                copy(out)
                 out.flush()
                 os.fsync(out.fileno())
             os.replace(tmp, path)
@@ -178,7 +217,77 @@ def _repair(path: Path) -> _Scan:
             raise _CannotRepair(path, f'cannot rewrite it: {exc.strerror}') from None
         finally:
             tmp.unlink(missing_ok=True)
-        return scan
+
+
+def _repair(path: Path) -> _Scan:
+    """Rewrite an unfinished MCAP file (or one whose summary is damaged) with everything its
+    complete, intact records hold, then a summary and footer."""
+    scan = _Scan()
+    _rewrite(path, lambda out: _copy_records(path, scan, out))
+    return scan
+
+
+def _drop_chunks(path: Path, summary: Summary, check: ChunkCheck,
+                 old: BagMetadata | None) -> None:
+    """Rewrite a finished MCAP file without its corrupt chunks: the same header, schemas,
+    channels (all of them, so no topic disappears), the good chunks' messages with the same
+    chunk boundaries and compression, attachments and metadata records. rosbag2's own
+    'rosbag2' metadata record is written anew with the counts that are left."""
+    bad = {c.offset for c in check.corrupt or ()}
+    indexes = chunk_indexes(summary)
+    good = [ci for ci in indexes if ci.chunk_start_offset not in bad]
+    compression = _COMPRESSION.get(good[0].compression if good else indexes[0].compression,
+                                   CompressionType.NONE)
+
+    def copy(out: io.BufferedWriter) -> None:
+        with open(path, 'rb') as src:
+            reader = make_reader(src)
+            try:
+                header = reader.get_header()
+            except _DECODE_ERRORS:
+                header = Header('ros2', '')
+            try:
+                records = list(reader.iter_metadata())
+                attachments = list(reader.iter_attachments())
+            except _DECODE_ERRORS as exc:
+                log.warning('%s: metadata or attachment records unreadable (%s); not kept',
+                            path, error_text(exc))
+                records, attachments = [], []
+            writer = Writer(out, compression=compression)
+            writer.start(profile=header.profile, library=header.library)
+            schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data)
+                          for sid, s in sorted(summary.schemas.items())}
+            channel_ids = {cid: writer.register_channel(ch.topic, ch.message_encoding,
+                                                        schema_ids.get(ch.schema_id, 0),
+                                                        ch.metadata)
+                           for cid, ch in sorted(summary.channels.items())}
+            for ci in good:
+                for rec in decode_chunk(src, ci, summary.channels):
+                    if isinstance(rec, Message):
+                        writer.add_message(channel_ids[rec.channel_id], rec.log_time, rec.data,
+                                           rec.publish_time, rec.sequence)
+                writer.flush()  # ends the chunk where the original ended
+            for a in attachments:
+                writer.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
+            for rec in records:
+                if rec.name != 'rosbag2':
+                    writer.add_metadata(rec.name, rec.metadata)
+            if any(rec.name == 'rosbag2' for rec in records):
+                counts = check.counts or {}
+                count = sum(counts.values())
+                meta = BagMetadata(
+                    'mcap', [FileInfo(path.name, check.start if count else INFINITE_NS,
+                                      check.end - check.start if count else 0, count)],
+                    _topics_and_stats(summary.schemas, summary.channels, counts))
+                if old is not None:
+                    meta.custom_data, meta.ros_distro = old.custom_data, old.ros_distro
+                writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(meta.to_dict())})
+            writer.finish()
+
+    try:
+        _rewrite(path, copy)
+    except CHUNK_ERRORS as exc:  # a chunk checked a moment ago no longer reads
+        raise BagError(f'{path}: changed while being reindexed: {error_text(exc)}') from None
 
 
 def _copy_records(path: Path, scan: _Scan, out: io.BufferedWriter) -> None:
@@ -271,15 +380,115 @@ def _merge_topics(per_file: Iterable[list[TopicInfo]]) -> list[TopicInfo]:
     return list(merged.values())
 
 
-def reindex(bag_dir: str | os.PathLike[str]) -> BagMetadata:
-    """Finish unfinished .mcap files of a bag and rebuild its metadata.yaml (`ros2 bag reindex`).
+def lost_messages(corrupt: Iterable[CorruptChunk]) -> str:
+    """'100 messages', '100+ messages' (some chunk's count unknown) or '? messages'."""
+    corrupt = list(corrupt)
+    known = sum(c.messages or 0 for c in corrupt)
+    if all(c.messages is None for c in corrupt):
+        return '? messages'
+    return f'{known}{"+" if any(c.messages is None for c in corrupt) else ""} messages'
 
-    Args:
-        bag_dir: the bag directory.
 
-    Returns the new metadata. Logs one warning per repaired file (file, messages recovered).
-    Raises BagError if the directory holds no .mcap file, a file is still being recorded or
-    cannot be rewritten.
+def dropped_text(corrupt: list[CorruptChunk], verb: str = 'dropped', listed: int = 3) -> str:
+    """'dropped 1 corrupt chunk with 100 messages (chunk 5 of 10 (byte ...): ZstdError: ...)'"""
+    parts = [c.describe().split(' ', 1)[1] for c in corrupt[:listed]]
+    if len(corrupt) > listed:
+        parts.append(f'and {len(corrupt) - listed} more')
+    plural = 's' if len(corrupt) != 1 else ''
+    return (f'{verb} {len(corrupt)} corrupt chunk{plural} with {lost_messages(corrupt)} '
+            f'({"; ".join(parts)})')
+
+
+@dataclass
+class FileCheck:
+    """What decoding every chunk of one .mcap file found (`vizzy bag info --check`)."""
+
+    file: Path
+    chunks: int                 # chunks in the file, good and corrupt
+    messages: int               # messages that read
+    corrupt: list[CorruptChunk]
+    problem: str = ''           # anything else: unfinished, damaged summary ('' when none)
+
+
+def check_file(file: Path) -> FileCheck:
+    """Decode every chunk of an .mcap file and check its CRC; never writes. Raises BagError
+    only when the file cannot be read at all."""
+    problem = ''
+    try:
+        if mcap_has_footer(file):
+            try:
+                with open(file, 'rb') as f:
+                    summary = read_summary(f)
+                    if summary is not None and summary.chunk_indexes:
+                        chk = check_chunks(file, f, summary)
+                        return FileCheck(file, chk.chunks, chk.messages, chk.corrupt or [])
+            except _DECODE_ERRORS as exc:
+                problem = f'damaged summary ({error_text(exc)}; `vizzy bag reindex` rebuilds it)'
+        else:
+            problem = 'not finished (a killed recording; `vizzy bag reindex` finishes it)'
+        scan = _Scan()
+        for _ in _scan(file, scan):
+            pass
+    except OSError as exc:
+        raise BagError(f'{file}: cannot read: {exc.strerror}') from None
+    if scan.problem:
+        problem = f'{problem}; {scan.problem}' if problem else scan.problem
+    return FileCheck(file, scan.chunks + len(scan.corrupt), scan.message_count, scan.corrupt,
+                     problem)
+
+
+def _reindex_finished(file: Path, old: BagMetadata | None) -> list[CorruptChunk]:
+    """Decode every chunk of a finished file; rewrite it without the corrupt ones (or from its
+    data section when its summary is damaged). Returns the chunks dropped."""
+    try:
+        with open(file, 'rb') as f:
+            summary = read_summary(f)
+            chk = check_chunks(file, f, summary) if summary and summary.chunk_indexes else None
+    except OSError as exc:
+        raise BagError(f'{file}: cannot read: {exc.strerror}') from None
+    except _DECODE_ERRORS as exc:
+        scan = _repair(file)
+        log.warning('%s: damaged summary (%s); rebuilt it from the data section: %d messages in '
+                    '%d chunks%s', file, error_text(exc), scan.message_count, scan.chunks,
+                    '; ' + dropped_text(scan.corrupt) if scan.corrupt else '')
+        return scan.corrupt
+    if chk is None:  # no chunk index (summary-less or unchunked): the data section says
+        scan = _Scan()
+        for _ in _scan(file, scan):
+            pass
+        if not scan.corrupt:
+            return []
+        scan = _repair(file)
+    else:
+        if not chk.corrupt:
+            return []
+        assert summary is not None
+        _drop_chunks(file, summary, chk, old)
+        scan = _Scan(chunks=chk.chunks - len(chk.corrupt), corrupt=chk.corrupt,
+                     counts=chk.counts or {})
+    log.warning('%s: %s; kept %d messages in %d chunks', file, dropped_text(scan.corrupt),
+                scan.message_count, scan.chunks)
+    return scan.corrupt
+
+
+@dataclass
+class Reindexed:
+    """What reindex_bag() did."""
+
+    metadata: BagMetadata           # the new metadata.yaml
+    dropped: list[CorruptChunk]     # corrupt chunks dropped (their messages are lost)
+    recovered: list[Path]           # unfinished files finished (killed recordings)
+
+
+def reindex_bag(bag_dir: str | os.PathLike[str], *, check: bool = True) -> Reindexed:
+    """`ros2 bag reindex`: rebuild metadata.yaml from the .mcap files, after finishing
+    unfinished files (killed recordings) and, with check, decoding every chunk of every file
+    and rewriting the files that hold corrupt chunks without them (every good message, every
+    topic, the metadata records kept).
+
+    Logs one warning per file it rewrote (what it kept, which chunks it dropped with how many
+    messages). Raises BagError if the directory holds no .mcap file, a file is still being
+    recorded or cannot be rewritten.
     """
     path = Path(bag_dir)
     if not path.is_dir():
@@ -293,20 +502,32 @@ def reindex(bag_dir: str | os.PathLike[str]) -> BagMetadata:
             old = BagMetadata.load(path / METADATA_FILE)
         except BagError:
             old = None  # rebuilt below from the files
+    dropped: list[CorruptChunk] = []
+    recovered: list[Path] = []
     for file in files:
         if mcap_has_footer(file):
+            if check:
+                dropped += _reindex_finished(file, old)
             continue
         scan = _repair(file)
+        recovered.append(file)
+        dropped += scan.corrupt
         why = f' ({scan.problem})' if scan.problem else ''
+        lost = f'; {dropped_text(scan.corrupt)}' if scan.corrupt else ''
         log.warning('%s: recording was not closed; recovered %d messages from %d complete '
-                    'chunks%s; rebuilt %s', file, scan.message_count, scan.chunks, why,
+                    'chunks%s%s; rebuilt %s', file, scan.message_count, scan.chunks, why, lost,
                     METADATA_FILE)
     summaries = [_summarize(f) for f in files]
     meta = BagMetadata('mcap', [s[1] for s in summaries], _merge_topics(s[0] for s in summaries))
     if old is not None:
         meta.custom_data, meta.ros_distro = old.custom_data, old.ros_distro or meta.ros_distro
     meta.write(path)
-    return meta
+    return Reindexed(meta, dropped, recovered)
+
+
+def reindex(bag_dir: str | os.PathLike[str]) -> BagMetadata:
+    """reindex_bag(bag_dir).metadata: the bag's new metadata.yaml content."""
+    return reindex_bag(bag_dir).metadata
 
 
 # --- the reader ---------------------------------------------------------------------------------
@@ -333,6 +554,8 @@ class BagReader:
                            f'{METADATA_FILE})')
         meta_path = self.path / METADATA_FILE
         self._scanned: set[Path] = set()  # unfinished files read by scanning only
+        self._corrupt: dict[tuple[Path, int], CorruptChunk] = {}  # skipped while reading
+        self._warned: set[Path] = set()  # files whose damaged summary was reported
         if meta_path.exists():
             self.metadata = BagMetadata.load(meta_path)
         else:
@@ -365,8 +588,8 @@ class BagReader:
     def _reindex(self, repair: bool) -> BagMetadata:
         reason = 'repair=False' if not repair else 'read-only directory'
         if repair and os.access(self.path, os.W_OK):
-            try:
-                return reindex(self.path)
+            try:  # only finishes killed recordings: a corrupt chunk is skipped when read
+                return reindex_bag(self.path, check=False).metadata
             except _CannotRepair as exc:
                 reason = exc.reason
         return self._scan_metadata(reason)
@@ -474,29 +697,55 @@ class BagReader:
                        stop_ns: int | None) -> Iterator[BagMessage]:
         lo, hi = start_ns or 0, INFINITE_NS if stop_ns is None else stop_ns
         try:
-            if file in self._scanned or not mcap_has_footer(file):
+            summary = None
+            if file not in self._scanned and mcap_has_footer(file):
+                with open(file, 'rb') as f:
+                    try:
+                        summary = read_summary(f)
+                    except _DECODE_ERRORS as exc:  # the data section may well be intact
+                        self._warn_once(file, f'{file}: damaged summary ({error_text(exc)}); '
+                                              'reading its data section instead')
+            if summary is None or not summary.chunk_indexes:  # unfinished, or no chunk index
                 scan = _Scan()
-                for rec in _scan(file, scan):
+                for rec in _scan(file, scan, self._skip_corrupt):
                     if isinstance(rec, Message) and lo <= rec.log_time < hi:
                         ch = scan.channels[rec.channel_id]
                         if wanted is None or ch.topic in wanted:
                             yield BagMessage(ch.topic, self._type_of(ch, scan.schemas), rec.data,
                                              rec.log_time, rec.publish_time)
                 return
+            ids = None if wanted is None else {cid for cid, ch in summary.channels.items()
+                                               if ch.topic in wanted}
             with open(file, 'rb') as f:
-                reader = make_reader(f, validate_crcs=True)
-                for schema, ch, msg in reader.iter_messages(
-                        topics=None if wanted is None else sorted(wanted),
-                        starting_at=start_ns, ending_before=stop_ns, log_time_order=True):
-                    typename = schema.name if schema else self._types.get(ch.topic, '')
-                    yield BagMessage(ch.topic, typename, msg.data, msg.log_time, msg.publish_time)
+                for ch, msg in indexed_messages(file, f, summary, ids, lo, hi,
+                                                self._skip_corrupt):
+                    yield BagMessage(ch.topic, self._type_of(ch, summary.schemas), msg.data,
+                                     msg.log_time, msg.publish_time)
         except BagError:
             raise
         except OSError as exc:
             raise BagError(f'{file}: cannot read: {exc.strerror}') from None
         except _DECODE_ERRORS as exc:
-            raise BagError(f'{file}: corrupt MCAP data ({type(exc).__name__}: '
-                           f'{one_line(exc)})') from None
+            raise BagError(f'{file}: corrupt MCAP data ({error_text(exc)})') from None
+
+    @property
+    def corrupt_chunks(self) -> list[CorruptChunk]:
+        """Chunks that did not decompress or failed their CRC while reading: their messages
+        were skipped (`vizzy bag reindex` drops them from the files)."""
+        return list(self._corrupt.values())
+
+    def _skip_corrupt(self, chunk: CorruptChunk) -> None:
+        key = (chunk.file, chunk.offset)
+        if key in self._corrupt:  # read again (a loop): said once
+            return
+        self._corrupt[key] = chunk
+        log.warning('skipped corrupt chunk %s; reading on (`vizzy bag reindex` drops it)',
+                    chunk.describe())
+
+    def _warn_once(self, file: Path, text: str) -> None:
+        if file not in self._warned:
+            self._warned.add(file)
+            log.warning('%s', text)
 
     def _type_of(self, ch: Channel, schemas: dict[int, Schema]) -> str:
         schema = schemas.get(ch.schema_id)

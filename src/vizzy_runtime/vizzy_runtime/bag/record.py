@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import queue
@@ -13,7 +14,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from .common import BagError, BagMetadata, QosProfile, one_line
+from .common import BagError, BagMetadata, QosProfile, StopRequest, one_line
 from .writer import BagWriter
 
 log = logging.getLogger('vizzy_runtime.bag')
@@ -54,7 +55,8 @@ class Recorder:
         chunk_size, flush_interval, compression, custom_data: see BagWriter.
 
     run() blocks until the duration passes, stop() is called or SIGINT/SIGTERM arrives, then
-    finalizes the bag (nothing received is dropped) and returns the per-topic counts.
+    finalizes the bag (nothing received is dropped) and returns the per-topic counts. A stop
+    that comes before or during start-up (DDS discovery) still ends in a finished, empty bag.
     """
 
     def __init__(self, output_dir: str | os.PathLike[str], topics: Iterable[str] | None = None,
@@ -74,7 +76,7 @@ class Recorder:
         self._writer_args: dict[str, Any] = dict(chunk_size=chunk_size,
                                                  flush_interval=flush_interval,
                                                  compression=compression, custom_data=custom_data)
-        self._stop = threading.Event()
+        self._stop = StopRequest()  # set from signal handlers: threading.Event is not safe there
         self._queue: queue.SimpleQueue[tuple[str, bytes, int, int] | None] = queue.SimpleQueue()
         self._readers: dict[str, Any] = {}
         self._skipped: set[str] = set()
@@ -83,8 +85,17 @@ class Recorder:
         self.metadata: BagMetadata | None = None
 
     def stop(self) -> None:
-        """Ask run() to finish (thread- and signal-safe)."""
+        """Ask run() to finish (thread- and signal-safe; also before run())."""
         self._stop.set()
+
+    def handle_signal(self, signum: int = signal.SIGINT, _frame: FrameType | None = None) -> None:
+        """What run() does on SIGINT/SIGTERM (for a caller that keeps its own handler): stop();
+        a repeated signal says the bag is being finished. Takes no lock and does not log
+        (os.write), so it is safe wherever the main thread was interrupted."""
+        if self._stop.is_set():
+            with contextlib.suppress(OSError):
+                os.write(2, b'[WARNING] finishing the bag, please wait\n')
+        self.stop()
 
     @property
     def counts(self) -> dict[str, int]:
@@ -100,8 +111,8 @@ class Recorder:
 
         Returns messages recorded per topic. Raises BagError if the bag cannot be written.
         """
-        from .. import dds
-        # Handlers first: a Ctrl-C from here on always ends in a finished bag.
+        # Handlers first, before DDS is even imported (seconds on a loaded machine): a Ctrl-C
+        # from here on always ends in a finished bag, never in a KeyboardInterrupt.
         old = self._install_signals() if handle_signals else {}
         try:
             self.writer = writer = BagWriter(self.output_dir, **self._writer_args)
@@ -109,9 +120,12 @@ class Recorder:
                                       name='bag-writer', daemon=True)
             thread.start()
             try:
-                discovery = dds.Discovery()
+                discovery = None
+                if not self._stop.is_set():
+                    from .. import dds
+                    discovery = dds.Discovery()
                 deadline = None if duration is None else time.monotonic() + duration
-                while not self._stop.is_set():
+                while discovery is not None and not self._stop.is_set():
                     self._subscribe_new(discovery, writer)
                     wait = self.discovery_interval
                     if deadline is not None:
@@ -201,8 +215,8 @@ class Recorder:
                 return
 
     def _finish(self, thread: threading.Thread, writer: BagWriter) -> None:
-        from .. import dds
         for reader in self._readers.values():
+            from .. import dds  # imported already: there are readers
             self._on_data(reader)  # what arrived but was not taken yet
             dds.delete(reader)
         self._queue.put(None)
@@ -215,10 +229,5 @@ class Recorder:
     def _install_signals(self) -> dict[int, Any]:
         if threading.current_thread() is not threading.main_thread():
             return {}
-
-        def handler(signum: int, _frame: FrameType | None) -> None:
-            if self._stop.is_set():
-                log.warning('finishing the bag, please wait')
-            self.stop()
-
-        return {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+        return {sig: signal.signal(sig, self.handle_signal)
+                for sig in (signal.SIGINT, signal.SIGTERM)}
