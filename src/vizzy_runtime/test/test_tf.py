@@ -13,8 +13,21 @@ from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.ros import message, qos_profile_latched
 from vizzy_runtime.testing import wait_until
-from vizzy_runtime.tf import TransformBuffer, TransformListener
+from vizzy_runtime.tf import (
+    ExtrapolationError,
+    FramePoses,
+    TransformBuffer,
+    TransformListener,
+    TransformRefusedError,
+)
 from vizzy_vision.frames import matrices_from_transforms, quaternions_to_matrices
+from vizzy_vision.kinematics import (
+    Transform,
+    frames_in_base,
+    joint_transforms,
+    static_transforms,
+    world_transform,
+)
 
 TFMessage = message('tf2_msgs/msg/TFMessage')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
@@ -40,6 +53,31 @@ def stamped(parent: str, child: str, pose: np.ndarray) -> Any:
     t.translation.x, t.translation.y, t.translation.z = (float(v) for v in pose[:3, 3])
     t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w = float(x), float(y), float(z), float(w)
     return msg
+
+
+def head_stamped(t: Transform, stamp: float) -> Any:
+    """A TransformStamped of one of the head's transforms at stamp [s]."""
+    msg = TransformStamped(child_frame_id=t.child)
+    msg.header.frame_id = t.parent
+    msg.header.stamp.sec = int(stamp)
+    msg.header.stamp.nanosec = int(round((stamp - int(stamp)) * 1e9))
+    tr, q = msg.transform.translation, msg.transform.rotation
+    tr.x, tr.y, tr.z = t.translation
+    q.x, q.y, q.z, q.w = t.rotation
+    return msg
+
+
+def pan(deg: float, z: float = 0.5) -> np.ndarray:
+    """A pose turned deg about z, z [m] up."""
+    a = math.radians(deg)
+    m = np.eye(4)
+    m[:2, :2] = [[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]
+    m[2, 3] = z
+    return m
+
+
+def yaw_deg(m: np.ndarray) -> float:
+    return math.degrees(math.atan2(m[1, 0], m[0, 0]))
 
 
 def test_quaternions_become_rotation_matrices() -> None:
@@ -115,7 +153,9 @@ def test_unknown_and_disconnected_frames_raise_naming_them() -> None:
     np.testing.assert_array_equal(buffer.lookup_transform('unknown', 'unknown'), np.eye(4))
 
 
-def test_reparenting_replaces_and_loops_are_reported() -> None:
+def test_reparenting_replaces_and_loop_closing_edges_are_refused() -> None:
+    """issue 28 item 3: one edge closing a loop used to break every lookup through it until
+    restart; now it is refused, named, and the tree keeps working."""
     buffer = TransformBuffer()
     shift = np.eye(4)
     shift[0, 3] = 1.0
@@ -123,12 +163,46 @@ def test_reparenting_replaces_and_loops_are_reported() -> None:
     buffer.set_transform('c', 'b', np.eye(4))  # b moves under c
     assert buffer.parent('b') == 'c'
     np.testing.assert_array_equal(buffer.lookup_transform('c', 'b'), np.eye(4))
-    buffer.set_transform('b', 'a', np.eye(4))  # a -> b -> ... -> a: a loop
-    buffer.set_transform('a', 'c', np.eye(4))
-    with pytest.raises(LookupError, match='loop'):
-        buffer.lookup_transform('a', 'b')
+    buffer.set_transform('b', 'a', shift)      # c -> b -> a
+    with pytest.raises(TransformRefusedError, match=r"'a' -> 'c': would close a loop: "
+                                                    r"c -> a -> b -> c") as err:
+        buffer.set_transforms(['a', 'c'], ['c', 'd'], np.stack([np.eye(4), shift]))
+    assert err.value.refused == [('a', 'c', 'would close a loop: c -> a -> b -> c')]
+    assert buffer.parent('c') is None and buffer.parent('d') == 'c'   # the rest was stored
+    np.testing.assert_array_equal(buffer.lookup_transform('c', 'a'), shift)
+    np.testing.assert_array_equal(buffer.lookup_transform('a', 'd'), np.linalg.inv(shift) @ shift)
+    with pytest.raises(TransformRefusedError, match='loop'):       # a root under its descendant
+        buffer.set_transform('d', 'c', np.eye(4), stamp=1.0)
+    assert buffer.refused == {'loop': 2}
     with pytest.raises(ValueError, match='to itself'):
         buffer.set_transform('x', 'x', np.eye(4))
+
+
+def test_a_foreign_loop_on_tf_or_tf_static_leaves_the_head_tree_working() -> None:
+    """The head's tree as the simulator publishes it; a foreign TFMessage puts base_link under
+    the left camera (on /tf, then on /tf_static) and the real /tf goes on: ego <- left keeps
+    its value (before the fix: LookupError 'loop' for good, since base_link is static)."""
+    buffer = TransformBuffer()
+    buffer.set_transform_messages([head_stamped(t, 0.0) for t in
+                                   [world_transform(), *static_transforms()]], static=True)
+    buffer.set_transform_messages([head_stamped(t, 5.0) for t in joint_transforms([0.1] * 5)])
+    expected = buffer.lookup_transform('ego', 'left_camera_optical_frame')
+    truth = frames_in_base([0.1] * 5)
+    np.testing.assert_allclose(expected, np.linalg.inv(truth['ego'])
+                               @ truth['left_camera_optical_frame'], atol=1e-12)
+    loop = stamped('left_camera_optical_frame', 'base_link', np.eye(4))
+    loop.header.stamp.sec = 5
+    for static in (False, True):
+        with pytest.raises(TransformRefusedError, match="'left_camera_optical_frame' -> "
+                                                        "'base_link'"):
+            buffer.set_transform_messages([loop], static=static)
+        buffer.set_transform_messages([head_stamped(t, 5.01) for t in
+                                       joint_transforms([0.1] * 5)])
+        np.testing.assert_allclose(buffer.lookup_transform('ego', 'left_camera_optical_frame'),
+                                   expected, atol=1e-12)
+        assert buffer.parent('base_link') == 'world'
+    # a /tf edge may not move a /tf_static frame either (it could close a loop later)
+    assert buffer.refused == {'static frame': 1, 'loop': 1}
 
 
 def test_messages_are_added_all_or_nothing() -> None:
@@ -236,3 +310,117 @@ def test_frame_poses_answer_at_a_past_stamp_while_the_head_moves() -> None:
     assert poses.latest_answers == 1
     poses.set_fixed_frame('world')                        # another frame: records forgotten
     assert poses.newest('camera') is None
+
+
+def test_lookup_at_a_stamp_interpolates_each_dynamic_edge() -> None:
+    """issue 28 item 3: a camera panning at 1 rad/s, /tf at 100 Hz; an image stamped between two
+    samples and looked up 50 ms later gets the pose at its stamp (the latest is ~2.9 deg off);
+    static edges hold at any stamp."""
+    buffer = TransformBuffer()
+    optical = pan(-90.0, 0.0)
+    buffer.set_transform('camera', 'optical', optical)               # static
+    rate = math.degrees(1.0)                                         # 1 rad/s in deg/s
+    for k in range(31):                                              # 100.00 .. 100.30 s
+        buffer.set_transform('base_link', 'camera', pan(rate * 0.01 * k, 0.4), 100.0 + 0.01 * k)
+    image = 100.245                                                  # between two samples
+    at_image = buffer.lookup_transform('base_link', 'optical', image)
+    assert yaw_deg(at_image) == pytest.approx(rate * 0.245 - 90.0, abs=1e-9)
+    assert yaw_deg(buffer.lookup_transform('base_link', 'optical')) \
+        == pytest.approx(rate * 0.30 - 90.0)                        # latest: 3.15 deg further
+    np.testing.assert_allclose(at_image[:3, 3], [0.0, 0.0, 0.4], atol=1e-12)
+    # a header's stamp works as well as seconds; an exact sample is returned as it is
+    time_msg = TransformStamped().header.stamp
+    time_msg.sec, time_msg.nanosec = 100, 120_000_000
+    np.testing.assert_allclose(buffer.lookup_transform('base_link', 'camera', time_msg),
+                               pan(rate * 0.12, 0.4), atol=1e-12)
+    # the static edge alone is time-independent
+    np.testing.assert_array_equal(buffer.lookup_transform('camera', 'optical', 5.0), optical)
+    np.testing.assert_array_equal(buffer.lookup_transform('camera', 'optical', 1e9), optical)
+    # just past the newest sample (tf lags slightly): the newest, counted; further: an error
+    held = buffer.lookup_transform('base_link', 'camera', 100.33)
+    assert yaw_deg(held) == pytest.approx(rate * 0.30) and buffer.held_lookups == 1
+    with pytest.raises(ExtrapolationError, match=r"no transform 'base_link' -> 'camera' at "
+                                                 r"100\.4000 s yet") as err:
+        buffer.lookup_transform('base_link', 'optical', 100.4)
+    assert isinstance(err.value, LookupError) and err.value.frame == 'camera'
+    assert not buffer.can_transform('base_link', 'optical', 100.4)
+    with pytest.raises(ExtrapolationError, match=r"older than its history \(100\.0000 to "
+                                                 r"100\.3000 s kept"):
+        buffer.lookup_transform('optical', 'base_link', 99.0)
+    assert buffer.latest_common_time('optical', 'base_link') == pytest.approx(100.3)
+    assert buffer.latest_common_time('camera', 'optical') is None    # static only
+
+
+def test_a_lookup_waits_up_to_its_timeout_for_the_tf_that_covers_its_stamp() -> None:
+    import threading
+
+    buffer = TransformBuffer()
+    buffer.set_transform('base_link', 'camera', pan(0.0), 10.0)
+    with pytest.raises(ExtrapolationError, match='yet'):
+        buffer.lookup_transform('base_link', 'camera', 10.5, timeout_s=0.05)
+    got: list[Any] = []
+    waiter = threading.Thread(target=lambda: got.append(buffer.lookup_transform(
+        'base_link', 'camera', 10.5, timeout_s=30.0)))
+    waiter.start()
+    buffer.set_transform('base_link', 'camera', pan(10.0), 11.0)   # /tf that covers 10.5 s
+    waiter.join(30.0)
+    assert len(got) == 1 and yaw_deg(got[0]) == pytest.approx(5.0)
+
+
+def test_history_is_bounded_by_time_and_count() -> None:
+    buffer = TransformBuffer(cache_time_s=1.0, max_samples=50)
+    for k in range(300):                                             # 3 s at 100 Hz
+        buffer.set_transform('base_link', 'camera', pan(k), 0.01 * k)
+    assert buffer.stats()['samples'] == 50                           # the count bound
+    with pytest.raises(ExtrapolationError, match='older than its history'):
+        buffer.lookup_transform('base_link', 'camera', 2.4)
+    assert yaw_deg(buffer.lookup_transform('base_link', 'camera', 2.505)) == pytest.approx(250.5
+                                                                                          - 360)
+    buffer = TransformBuffer(cache_time_s=1.0)
+    for k in range(300):
+        buffer.set_transform('base_link', 'camera', pan(k / 10), 0.01 * k)
+    kept = buffer.stats()['samples']
+    assert kept in (100, 101)                                        # 1 s: the time bound
+    buffer.set_transform('base_link', 'camera', pan(0.0), 0.5)       # older than kept: ignored
+    assert buffer.old_samples_ignored == 1 and buffer.stats()['samples'] == kept
+
+
+def test_a_stream_of_new_frame_names_keeps_the_frames_bounded() -> None:
+    """issue 28 item 3: 321,500 new names on /tf in 60 s grew each node by 27-150 MB and made a
+    lookup 138 ms. Here 60,000 names over 60 s of the buffer's clock, while the head's /tf goes
+    on at 100 Hz: names not updated for cache_time_s are forgotten, at most max_frames are held
+    (the rest refused, one error per message), and the head's chain still looks up."""
+    now = [0.0]
+    buffer = TransformBuffer(max_frames=2000, clock=lambda: now[0])
+    buffer.set_transform_messages([head_stamped(t, 0.0) for t in
+                                   [world_transform(), *static_transforms()]], static=True)
+    refused = 0
+    for i0 in range(0, 60_000, 10):
+        now[0] = i0 / 1000.0
+        buffer.set_transform_messages([head_stamped(t, now[0]) for t in
+                                       joint_transforms([0.1] * 5)])
+        foreign = [stamped('foreign_map', f'foreign_{i}', np.eye(4)) for i in range(i0, i0 + 10)]
+        try:
+            buffer.set_transform_messages(foreign)
+        except TransformRefusedError as exc:
+            assert 'max_frames 2000' in str(exc)
+            refused += 1
+    stats = buffer.stats()
+    assert stats['edges'] <= 2000 and stats['frames_expired'] > 8000
+    assert refused > 0 and stats['refused frame limit'] > 0
+    assert stats['samples'] < 2000 + 5 * 1001                        # head: 10 s at 100 Hz
+    truth = frames_in_base([0.1] * 5)
+    np.testing.assert_allclose(buffer.lookup_transform('ego', 'left_camera_optical_frame', 59.99),
+                               np.linalg.inv(truth['ego']) @ truth['left_camera_optical_frame'],
+                               atol=1e-12)
+    # a paused head is not forgotten while no new names come (nothing sweeps)
+    now[0] += 100.0
+    assert buffer.can_transform('ego', 'left_camera_optical_frame')
+
+
+def test_frame_poses_ask_the_buffer_for_their_history() -> None:
+    buffer = TransformBuffer(cache_time_s=1.0)
+    poses = FramePoses(buffer, 'base_link', max_age_s=5.0)
+    assert buffer.cache_time_s == 5.0
+    poses.max_age_s = 8.0                                            # a node's parameter change
+    assert buffer.cache_time_s == 8.0

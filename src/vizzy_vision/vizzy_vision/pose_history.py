@@ -1,7 +1,8 @@
 """Recent poses of a frame in a world-fixed frame, by time stamp, interpolated in between.
 
-Shared by the nodes that fuse data taken with a moving head at its own stamp (the tracker's
-ego-motion compensation, the object map); vizzy_runtime.tf.FramePoses feeds it from /tf.
+interpolate_poses is the one pose interpolation of the project (spherical linear for the
+orientation, linear for the position): PoseHistory answers with it, and so does
+vizzy_runtime.tf.TransformBuffer for each /tf edge at a lookup's stamp.
 """
 
 from __future__ import annotations
@@ -12,13 +13,33 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 
+def interpolate_poses(weights: NDArray[np.float64] | list[float], first: FloatArray,
+                      second: FloatArray) -> FloatArray:
+    """Rigid poses (N, 4, 4) the fraction weights[i] (in [0, 1]) of the way from first[i] to
+    second[i]: the orientation along the shortest arc at constant angular velocity (scipy's Slerp,
+    r0 * exp(w log(r0^-1 r1)), in one vectorized pass over the N pairs), the position linearly.
+    """
+    from scipy.spatial.transform import Rotation
+
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    a = np.asarray(first, dtype=np.float64).reshape(-1, 4, 4)
+    b = np.asarray(second, dtype=np.float64).reshape(-1, 4, 4)
+    relative = np.einsum('nji,njk->nik', a[:, :3, :3], b[:, :3, :3])       # r0^-1 r1
+    step = Rotation.from_matrix(relative).as_rotvec() * w[:, None]
+    out = np.zeros_like(a)
+    out[:, :3, :3] = a[:, :3, :3] @ Rotation.from_rotvec(step).as_matrix().reshape(-1, 3, 3)
+    out[:, :3, 3] = (1.0 - w)[:, None] * a[:, :3, 3] + w[:, None] * b[:, :3, 3]
+    out[:, 3, 3] = 1.0
+    return out
+
+
 class PoseHistory:
     """Recent poses of a camera in a world-fixed frame (orientation (3, 3), position (3,)), by
     time stamp.
 
     Fed from /tf (the simulator publishes the head's transforms at every image's stamp, and at
     100 Hz); :meth:`at` answers the orientation at an image's stamp by spherical linear
-    interpolation between the two samples around it (scipy's Slerp; :meth:`pose_at`: the
+    interpolation between the two samples around it (interpolate_poses; :meth:`pose_at`: the
     4x4 pose, position interpolated linearly). A stamp after the newest
     sample by at most ``max_extrapolation_s`` gets the newest one (the transform for this image
     may arrive just after it); older than the oldest sample, or further ahead: None.
@@ -60,8 +81,6 @@ class PoseHistory:
 
     def pose_at(self, t: float) -> FloatArray | None:
         """The 4x4 pose at time t, or None when the history does not cover t."""
-        from scipy.spatial.transform import Rotation, Slerp
-
         if not self._t or t < self._t[0]:
             return None
         pose = np.eye(4)
@@ -71,12 +90,11 @@ class PoseHistory:
             pose[:3, :3], pose[:3, 3] = self._r[-1], self._p[-1]
             return pose
         i = int(np.searchsorted(self._t, t, side='right'))   # t_(i-1) <= t < t_i
-        times = [self._t[i - 1], self._t[i]]
-        slerp = Slerp(times, Rotation.from_matrix(np.stack([self._r[i - 1], self._r[i]])))
-        w = (t - times[0]) / (times[1] - times[0])
-        pose[:3, :3] = slerp([t]).as_matrix()[0]
-        pose[:3, 3] = (1 - w) * self._p[i - 1] + w * self._p[i]
-        return pose
+        ends = np.tile(np.eye(4), (2, 1, 1))
+        ends[0, :3, :3], ends[0, :3, 3] = self._r[i - 1], self._p[i - 1]
+        ends[1, :3, :3], ends[1, :3, 3] = self._r[i], self._p[i]
+        w = (t - self._t[i - 1]) / (self._t[i] - self._t[i - 1])
+        return interpolate_poses([w], ends[:1], ends[1:])[0]
 
     def at(self, t: float) -> FloatArray | None:
         """The orientation (3, 3) at time t, or None when the history does not cover t."""
@@ -84,4 +102,4 @@ class PoseHistory:
         return None if pose is None else pose[:3, :3]
 
 
-__all__ = ['PoseHistory']
+__all__ = ['PoseHistory', 'interpolate_poses']
