@@ -7,7 +7,10 @@ Subscribes
   /vizzy/{left,right}/image_raw   sensor_msgs/Image rgb8/bgr8 (RELIABLE keep-last 5, see QoS
                                   below), paired by stamp
   /vizzy/{left,right}/camera_info sensor_msgs/CameraInfo: K of each camera
-  /tf, /tf_static                 camera poses: left optical frame in `ego_frame`, right in left
+  /tf, /tf_static                 camera poses at each pair's stamp (the left image's):
+                                  left optical frame in `ego_frame`, right in left
+                                  (vizzy_runtime.tf, each /tf edge interpolated at the stamp; the
+                                  worker waits up to TF_WAIT_S for /tf that covers it)
   /gaze/state                     active_vision_msgs/GazeState: nothing is fused while in_saccade
                                   (nor pairs stamped before the last saccade ended)
 
@@ -55,6 +58,10 @@ logging and /diagnostics as its docstring says). The reasons (counter keys):
     camera_info', 'no frame_id', 'no camera pose' (tf lacks ego <- left or left <- right, or the
     rig is degenerate), 'no valid correspondences' (e.g. textureless: NaN disparities),
     'failed on a pair: <ExcType>' (an exception in the worker); these count in frames_skipped;
+    'not newer than the last fused pair' (REPEATED_STAMP: a pair stamped at or before the last
+    fused one, e.g. the same pair sent twice: one observation is fused once; counted in
+    pairs_repeated, not frames_skipped; when the node's clock itself went back before that
+    stamp, a restarted simulation or bag, it is fused);
   on /vizzy/{left,right}/camera_info: 'unusable K' (not 9 finite values with fx, fy > 0; the last
     good K stays in use);
   for an exception escaping a subscription callback (node_tools.guarded): 'failed on an image:
@@ -152,6 +159,10 @@ NO_CORRESPONDENCES = 'no valid correspondences'
 PAIR_FAILED = 'failed on a pair'           # + ': <ExcType>'
 PAIR_REASONS = (SIZES_DIFFER, NO_CAMERA_INFO, INFO_SIZE_MISMATCH, NO_FRAME_ID, NO_CAMERA_POSE,
                 NO_CORRESPONDENCES)
+REPEATED_STAMP = 'not newer than the last fused pair'
+# The worker waits this long [s] for the /tf that covers a pair's stamp (it may arrive just after
+# the images); then the pair is skipped ('no camera pose').
+TF_WAIT_S = 0.5
 UNUSABLE_K = 'unusable K'
 WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
 # After a gaze command, frames do not count towards frames_per_fixation until the saccade has
@@ -338,7 +349,8 @@ def cells_array(ses: SensoryEgoSphere, observed_only: bool) -> np.ndarray:
 
 @dataclass
 class Pair:
-    """A left and a right image with the same stamp."""
+    """A left and a right image with the same stamp (within max_stamp_skew_s); stamp: the left
+    image's [s]."""
 
     left: Any
     right: Any
@@ -380,6 +392,8 @@ class StereoSesNode(Node):
         self.frames_fused = 0
         self.frames_skipped = 0
         self.frames_in_saccade = 0
+        self.pairs_repeated = 0           # refused: stamp not newer than the last fused pair's
+        self._last_fused_stamp = -math.inf
         self.gaze_commands = 0
         self.last_report: FusionReport | None = None
         self.last_decision: Decision | None = None
@@ -468,8 +482,8 @@ class StereoSesNode(Node):
                 self._awaiting_saccade_until = -math.inf
             if self._in_saccade and not saccade:
                 self._frames_since_settle = 0        # a saccade just settled
-                # pairs stamped before this were taken before or during the movement: the
-                # latest-only tf would give them the new poses
+                # pairs stamped before this were taken before or during the movement
+                # (blurred; saccadic suppression)
                 self._settled_at = stamp_seconds(msg.header.stamp)
             self._in_saccade = saccade
         self.input_health.accept(self._gaze_state_topic)
@@ -508,7 +522,8 @@ class StereoSesNode(Node):
                     m for m in others if stamp_seconds(m.header.stamp) < t_other]}
                 others[:] = [m for m in others if stamp_seconds(m.header.stamp) > t_other]
                 mine.clear()
-                pair = Pair(msg if eye == 'left' else match, match if eye == 'left' else msg, t)
+                left_msg, right_msg = (msg, match) if eye == 'left' else (match, msg)
+                pair = Pair(left_msg, right_msg, stamp_seconds(left_msg.header.stamp))
                 self.pairs_received += 1
                 # max_rate_hz in the images' own time (sim time in the graph): a loaded
                 # machine fuses the same pairs, later, not fewer per second of video
@@ -579,8 +594,13 @@ class StereoSesNode(Node):
             self._skip(pair, NO_FRAME_ID, 'an image has no frame_id: no camera pose')
             return None
         try:
-            ego_left = self._tf.lookup_transform(self._p['ego_frame'], frames['left'])
-            left_right = self._tf.lookup_transform(frames['left'], frames['right'])
+            # the poses when the images were taken, not the latest: the head may have moved on
+            # (1 rad/s of pursuit is 2.9 deg per 50 ms); both at the left image's stamp (the
+            # right one's is within max_stamp_skew_s)
+            ego_left = self._tf.lookup_transform(self._p['ego_frame'], frames['left'],
+                                                 pair.stamp, timeout_s=TF_WAIT_S)
+            left_right = self._tf.lookup_transform(frames['left'], frames['right'], pair.stamp,
+                                                   timeout_s=TF_WAIT_S)
             rig = StereoRig.create(k['left'], k['right'], np.eye(4), left_right)
         except (LookupError, ValueError) as exc:
             self._skip(pair, NO_CAMERA_POSE, f'no usable camera poses: {exc}')
@@ -618,8 +638,30 @@ class StereoSesNode(Node):
                                            f'searching the fixed min_disparity/num_disparities')
             return None
 
+    def _repeated(self, pair: Pair) -> bool:
+        """Is pair stamped at or before the last fused pair (refused, counted, logged)?"""
+        last = self._last_fused_stamp
+        if pair.stamp > last:
+            return False
+        if self._clock_s() < last:
+            # the node's clock went back before the last fused stamp: the simulation or a bag
+            # restarted, so these are new observations
+            self.get_logger().info(f'time went back ({self._clock_s():.3f} s < last fused pair '
+                                   f'{last:.3f} s): fusing from {pair.stamp:.3f} s on')
+            self._last_fused_stamp = -math.inf
+            return False
+        self.pairs_repeated += 1
+        for eye in EYES:
+            self.input_health.refuse(
+                self._image_topics[eye], REPEATED_STAMP,
+                f'pair stamped {pair.stamp:.3f} s refused: the last fused pair was stamped '
+                f'{last:.3f} s (one observation is fused once)')
+        return True
+
     def _process(self, pair: Pair) -> None:
         t0 = time.monotonic()
+        if self._repeated(pair):
+            return
         with self._lock:
             in_saccade = self._in_saccade or pair.stamp < self._settled_at
             if self._ses_dirty:
@@ -655,6 +697,7 @@ class StereoSesNode(Node):
                             array_to_pointcloud2(points_array(frame, info), header))
         with self._ses_lock:
             report = self._ses.fuse(frame.means, frame.covs, ego_left)
+        self._last_fused_stamp = pair.stamp
         self.last_report = report
         self.frames_fused += 1
         self._accept()

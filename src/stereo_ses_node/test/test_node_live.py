@@ -8,6 +8,7 @@ Nothing asserts on wall-clock time: the tests wait for conditions.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,7 @@ from vizzy_runtime.ros import (
     qos_profile_system_default,
 )
 from vizzy_runtime.testing import reported_status, spinning, wait_until
-from vizzy_runtime.tf import TF_STATIC_TOPIC
+from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -76,6 +77,7 @@ class Rig(Node):
         self.points: list[Any] = []
         self.cells: list[Any] = []
         self.gaze: list[Any] = []
+        self.last_pair: tuple[Any, Any] | None = None      # the last pair _feed sent
         self.image_pubs = {e: self.create_publisher(Image, ses._image_subs[e].topic_name,
                                                     qos_profile_system_default) for e in FRAMES}
         self.info_pubs = {e: self.create_publisher(CameraInfo, ses._info_subs[e].topic_name,
@@ -125,20 +127,35 @@ def graph(context):
         yield rig, ses, executor
 
 
-_stamps = iter(range(10_000))
+# Image stamps (100 s + these): always increasing, as a camera's; the node refuses a pair that is
+# not newer than the last one it fused.
+_stamps = itertools.count()
+# A pair is published again only when none formed this long after it was sent (lost images):
+# a copy of a pair the worker was merely slow to take would be handled twice (issue 28 item 8).
+RESEND_S = 10.0
+
+
+def _take(n: int) -> int:
+    """The first of n consecutive fresh stamps."""
+    first = next(_stamps)
+    for _ in range(n - 1):
+        next(_stamps)
+    return first
 
 
 def _feed(rig: Rig, ses: Any, executor: Any, left: Any = None, right: Any = None) -> bool:
-    """Publish a pair (again every 0.2 s, in case the worker dropped it) until it was handled."""
+    """Publish a pair (a fresh stamp unless given) and wait until the node handled it."""
     stamp = next(_stamps)
     left = left or rig.image('left', stamp)
     right = right or rig.image('right', stamp)
-    done = ses.pairs_processed + 1
-    for _ in range(int(TIMEOUT / 0.2)):
+    rig.last_pair = (left, right)
+    received, done = ses.pairs_received, ses.pairs_processed + 1
+    for _ in range(int(TIMEOUT / RESEND_S)):
         rig.image_pubs['left'].publish(left)
         rig.image_pubs['right'].publish(right)
-        if wait_until(lambda: ses.pairs_processed >= done, 0.2, spin=executor):
-            return _settled(ses, executor)
+        if wait_until(lambda: ses.pairs_received > received, RESEND_S, spin=executor):
+            return (wait_until(lambda: ses.pairs_processed >= done, TIMEOUT, spin=executor)
+                    and _settled(ses, executor))
     return False
 
 
@@ -219,10 +236,29 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     for _ in range(3):
         assert _feed(rig, ses, executor)
     assert ses.frames_fused == 4
+    # the same pair again, after newer ones (a copy a loaded transport delivered late): the
+    # rate gate takes it (its stamp is seconds back, as after a restarted bag), the worker
+    # refuses it; fusing it would overstate the cells' information (issue 28 item 8)
+    copy = rig.last_pair
+    assert copy is not None
+    for _ in range(2):
+        assert _feed(rig, ses, executor)
+    assert ses.frames_fused == 6
+    obs, info = ses._ses.n_obs.copy(), ses._ses.info.copy()
+    processed = ses.pairs_processed
+    rig.image_pubs['left'].publish(copy[0])
+    rig.image_pubs['right'].publish(copy[1])
+    assert wait_until(lambda: ses.pairs_processed > processed, TIMEOUT, spin=executor)
+    assert _settled(ses, executor)
+    assert ses.frames_fused == 6 and ses.pairs_repeated == 1
+    assert np.array_equal(ses._ses.n_obs, obs) and np.array_equal(ses._ses.info, info)
+    left_topic = ses._image_subs['left'].topic_name
+    assert ses.input_health.refused()[(left_topic, ses_node.REPEATED_STAMP)] == 1
+    assert f'{left_topic}: refused: {ses_node.REPEATED_STAMP}' in capfd.readouterr().err
     n = len(rig.cells)
     assert wait_until(lambda: len(rig.cells) > n + 1, TIMEOUT, spin=executor)
     later = _cells(rig.cells[-1])
-    assert later['observations'].max() >= 4 and float(np.sum(ses._ses.n_obs)) > info_1
+    assert later['observations'].max() >= 6 and float(np.sum(ses._ses.n_obs)) > info_1
     assert np.median(later['information']) > np.median(cells['information']) + 1.0
 
     # gaze: saccades to the chosen cells, in ego, at priority 20
@@ -264,6 +300,44 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     assert ses.frames_in_saccade == suppressed + 1 and ses.frames_fused == fused
 
 
+def _yaw(deg: float) -> np.ndarray:
+    m = np.eye(4)
+    a = np.radians(deg)
+    m[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
+    return m
+
+
+def test_camera_poses_are_taken_at_the_pairs_stamp(graph, monkeypatch, capfd) -> None:
+    """issue 28 item 3: the head turns (ego -> head on /tf, 20 deg in 1 s) while the images wait;
+    the pair is fused with the cameras' poses at its stamp (10 deg, interpolated), not the
+    latest (20 deg). A pair stamped past the /tf received is skipped once the worker waited
+    TF_WAIT_S for it."""
+    rig, ses, executor = graph
+    tf_pub = rig.create_publisher(TFMessage, ses.resolve_topic_name(TF_TOPIC), 10)
+    rig.publish_info()
+    # the cameras on a 'head' frame (static), the head turning in ego (/tf)
+    rig.tf_pub.publish(TFMessage(transforms=[
+        _stamped('head', FRAMES[e], EGO_CYC @ POSES[e]) for e in FRAMES]))
+    stamp = next(_stamps)
+    for dt, deg in ((-0.5, 0.0), (0.5, 20.0)):
+        head = _stamped('ego', 'head', _yaw(deg))
+        # at 100 + stamp + dt s
+        head.header.stamp.sec, head.header.stamp.nanosec = 99 + stamp + int(dt > 0), 500_000_000
+        tf_pub.publish(TFMessage(transforms=[head]))
+    assert wait_until(lambda: len(ses._k) == 2
+                      and ses._tf.latest_common_time('ego', FRAMES['left']) == 100.5 + stamp,
+                      TIMEOUT, spin=executor)
+    used: list[np.ndarray] = []
+    fuse = ses._ses.fuse
+    monkeypatch.setattr(ses._ses, 'fuse', lambda m, c, t: (used.append(t), fuse(m, c, t))[1])
+    assert _feed(rig, ses, executor, rig.image('left', stamp), rig.image('right', stamp))
+    assert ses.frames_fused == 1 and len(used) == 1
+    np.testing.assert_allclose(used[0], _yaw(10.0) @ EGO_CYC @ POSES['left'], atol=1e-9)
+    # 2 s past the newest /tf: no pose for it (after waiting TF_WAIT_S)
+    assert _feed(rig, ses, executor) and ses.frames_fused == 1 and ses.frames_skipped == 1
+    assert "no transform 'ego' -> 'head'" in capfd.readouterr().err
+
+
 def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capfd) -> None:
     rig, ses, executor = graph
     rig.publish_info()
@@ -295,24 +369,26 @@ def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capfd) ->
     # the eyes' images may arrive interleaved: pairs still form by stamp
     received = ses.pairs_received
     processed = ses.pairs_processed
-    for k in (7000, 7001):
+    first = _take(2)
+    for k in (first, first + 1):
         rig.image_pubs['left'].publish(rig.image('left', k))
-    for k in (7000, 7001):
+    for k in (first, first + 1):
         rig.image_pubs['right'].publish(rig.image('right', k))
     assert wait_until(lambda: ses.pairs_received >= received + 1, TIMEOUT, spin=executor)
     assert wait_until(lambda: ses.pairs_processed > processed, TIMEOUT, spin=executor)
     assert ses.frames_fused >= 2 and ses.images_unpaired == 0
     # stamps that never match: no pair is formed, the unpaired images go with a message
     received = ses.pairs_received
+    first = _take(12)
     for k in range(6):
-        rig.image_pubs['right'].publish(rig.image('right', 8000 + 2 * k))
-        rig.image_pubs['left'].publish(rig.image('left', 8001 + 2 * k))
+        rig.image_pubs['right'].publish(rig.image('right', first + 2 * k))
+        rig.image_pubs['left'].publish(rig.image('left', first + 1 + 2 * k))
         wait_until(lambda: False, 0.05, spin=executor)
     assert wait_until(lambda: 'stamps differ' in capfd.readouterr().err, TIMEOUT,
                       spin=executor)
     assert ses.pairs_received == received and ses.images_unpaired >= 6
     # a mono8 image is dropped with a message
-    mono = rig.image('left', 6000, np.zeros((H, W), np.uint8), 'mono8')
+    mono = rig.image('left', next(_stamps), np.zeros((H, W), np.uint8), 'mono8')
     rig.image_pubs['left'].publish(mono)
     assert wait_until(lambda: "'mono8'" in capfd.readouterr().err, TIMEOUT, spin=executor)
     # the node still works
@@ -350,13 +426,14 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     zero_k.header.frame_id = FRAMES['left']
     zero_k.k = [0.0] * 9
     rig.info_pubs['left'].publish(zero_k)
-    unknown = rig.image('left', 9000)
+    first = _take(4)
+    unknown = rig.image('left', first)
     unknown.encoding = 'yuv9'
     rig.image_pubs['left'].publish(unknown)
-    short = rig.image('right', 9000)
+    short = rig.image('right', first)
     short.height = 2 * H                                      # more rows than the data holds
     rig.image_pubs['right'].publish(short)
-    rig.image_pubs['left'].publish(rig.image('left', 9001))   # its right image never comes
+    rig.image_pubs['left'].publish(rig.image('left', first + 1))  # its right never comes
     expected = {(left_info, ses_node.UNUSABLE_K): 1,
                 (left, ses_node.UNSUPPORTED_ENCODING): 1,
                 (right, ses_node.SHORT_DATA): 1}
@@ -366,10 +443,10 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
 
     # a valid pair: the waiting left image is dropped without a partner, the pair is fused
     fused, accepted = ses.frames_fused, health.accepted()
-    rig.image_pubs['left'].publish(rig.image('left', 9002))
-    rig.image_pubs['right'].publish(rig.image('right', 9002))
+    rig.image_pubs['left'].publish(rig.image('left', first + 2))
+    rig.image_pubs['right'].publish(rig.image('right', first + 2))
     assert wait_until(lambda: ses.frames_fused == fused + 1
-                      and any(p.header.stamp.sec == 100 + 9002 for p in rig.points),
+                      and any(p.header.stamp.sec == 100 + first + 2 for p in rig.points),
                       TIMEOUT, spin=executor)
     expected[(left, ses_node.NO_PARTNER)] = 1
     assert health.refused() == expected
@@ -393,7 +470,8 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     assert err.count(f'{left_info}: refused: {ses_node.UNUSABLE_K}') == 1, err
     assert f"{left}: refused: {ses_node.UNSUPPORTED_ENCODING}: 'yuv9'" in err, err
     assert f'{right}: refused: {ses_node.SHORT_DATA}' in err, err
-    assert f'{left}: refused: {ses_node.NO_PARTNER}: image stamped 9101.000 s' in err, err
+    assert (f'{left}: refused: {ses_node.NO_PARTNER}: image stamped {100 + first + 1}.000 s'
+            in err), err
     assert 'Traceback' not in err
     assert not any(reason.startswith('failed on') for _, reason in health.refused())
 
@@ -410,8 +488,8 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
         health.refused()
     monkeypatch.setattr(ses, '_prepare', boom)
     skipped = ses.frames_skipped
-    rig.image_pubs['left'].publish(rig.image('left', 9003))
-    rig.image_pubs['right'].publish(rig.image('right', 9003))
+    rig.image_pubs['left'].publish(rig.image('left', first + 3))
+    rig.image_pubs['right'].publish(rig.image('right', first + 3))
     for topic in (left, right):
         expected[(topic, f'{ses_node.PAIR_FAILED}: RuntimeError')] = 1
     assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
