@@ -26,8 +26,6 @@ import time
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
-import numpy as np
-
 DEFAULT_VIEW_PORT = 8765   # Foxglove's default (live_view.DEFAULT_PORT; not imported: it is slow)
 
 
@@ -144,100 +142,17 @@ def _wait_for_type(topic: str, typename: str | None, timeout: float) -> tuple[st
     return typename, qos
 
 
-class _Peers:
-    """The other ROS 2 processes (participants with rmw's `enclave=` USER_DATA) of the domain, so
-    a short-lived CLI can wait until it has heard what they announce, not a fixed time.
-
-    Fixed waits miss real ROS 2 processes on other DDS implementations: a Fast DDS
-    (rmw_fastrtps_cpp) participant is seen at once, but Cyclone often learns its readers and
-    writers only ~1.1 s later, and its ros_discovery_info sample (the node names) only with Fast
-    DDS's next periodic heartbeat, ~3 s after matching: its first sample to a reader it had just
-    matched reached Cyclone before Cyclone knew the writer, and it does not resend on Cyclone's
-    pre-emptive ACKNACK."""
-
-    # a participant seen this long without both readers and writers has no more (another CLI)
-    ENDPOINT_GRACE_S = 2.0
-
-    def __init__(self) -> None:
-        from cyclonedds.builtin import (
-            BuiltinDataReader,
-            BuiltinTopicDcpsParticipant,
-            BuiltinTopicDcpsPublication,
-            BuiltinTopicDcpsSubscription,
-        )
-
-        from . import dds
-        dp = dds.participant()
-        self._self = dp.guid.bytes
-        self._participants = BuiltinDataReader(dp, BuiltinTopicDcpsParticipant)
-        self._endpoints = [BuiltinDataReader(dp, BuiltinTopicDcpsPublication),
-                           BuiltinDataReader(dp, BuiltinTopicDcpsSubscription)]
-        self.first_seen: dict[bytes, float] = {}   # live peers
-        self.with_writers: set[bytes] = set()
-        self.with_readers: set[bytes] = set()
-        self.announcing: set[bytes] = set()        # peers with a ros_discovery_info writer
-
-    def poll(self) -> None:
-        from cyclonedds.core import InstanceState
-        try:
-            for s in self._participants.take(N=256):
-                key = s.key.bytes
-                if s.sample_info.instance_state != InstanceState.Alive:
-                    self.first_seen.pop(key, None)
-                elif key != self._self and b'enclave=' in _user_data(s.qos):
-                    self.first_seen.setdefault(key, time.monotonic())
-            for reader, seen in zip(self._endpoints, (self.with_writers, self.with_readers),
-                                    strict=True):
-                for s in reader.take(N=1000):
-                    if s.sample_info.instance_state == InstanceState.Alive:
-                        seen.add(s.participant_key.bytes)
-                        if s.topic_name == 'ros_discovery_info' and seen is self.with_writers:
-                            self.announcing.add(s.participant_key.bytes)
-        except Exception:  # noqa: BLE001 - decoding a peer being torn down can fail: look again
-            pass
-
-    def endpoints_known(self) -> bool:
-        """Every live peer's readers and writers have been seen. A ROS 2 process has both (at
-        least ros_discovery_info's); they come in one burst per kind, but the two kinds from Fast
-        DDS up to ~1 s apart. A peer seen for ENDPOINT_GRACE_S without both has no more."""
-        now = time.monotonic()
-        return all((key in self.with_writers and key in self.with_readers)
-                   or now - t > self.ENDPOINT_GRACE_S for key, t in self.first_seen.items())
-
-    def unheard(self, heard: set[bytes]) -> set[bytes]:
-        """Live peers that announce their nodes on ros_discovery_info but are not in heard."""
-        return {key for key in self.first_seen if key in self.announcing and key not in heard}
-
-
-def _user_data(qos: Any) -> bytes:
-    from cyclonedds.qos import Policy
-    for policy in qos or ():
-        if isinstance(policy, Policy.Userdata):
-            return bytes(policy.data)
-    return b''
-
-
-def _listen(wait: float, settled: Any, max_extra: float = 5.0, start: float | None = None) -> None:
-    """Listen until `wait` seconds after start (default: now), then until settled(), at most
-    max_extra seconds more."""
-    start = time.monotonic() if start is None else start
-    while True:
-        elapsed = time.monotonic() - start
-        if elapsed >= wait and (settled() or elapsed >= wait + max_extra):
-            return
-        time.sleep(0.05)
-
-
 def cmd_topic_list(ns: argparse.Namespace) -> int:
     from . import dds
+    from .peers import Peers, listen
     disc = dds.Discovery()
-    peers = _Peers()
+    peers = Peers()
 
     def settled() -> bool:
         peers.poll()
         return peers.endpoints_known()
 
-    _listen(ns.wait, settled)  # discovery is asynchronous: listen before answering
+    listen(ns.wait, settled)  # discovery is asynchronous: listen before answering
     topics: dict[str, set[str]] = {}
     for ep in disc.endpoints():
         topics.setdefault(ep.topic, set()).add(ep.typename)
@@ -248,6 +163,7 @@ def cmd_topic_list(ns: argparse.Namespace) -> int:
 
 def to_yaml(msg: Any, indent: int = 0, max_array: int = 16) -> str:
     """`ros2 topic echo`-style text; long arrays are cut to their first elements."""
+    import numpy as np  # not at the top: a Ctrl-C during a bag command's start-up is handled
     pad = '  ' * indent
     fields = (list(msg.get_fields_and_field_types())
               if hasattr(msg, 'get_fields_and_field_types') else [])
@@ -300,6 +216,7 @@ def cmd_topic_echo(ns: argparse.Namespace) -> int:
 
 def rate_stats(stamps: Sequence[float]) -> dict[str, float]:
     """ros2 topic hz's figures from receive times (s)."""
+    import numpy as np
     gaps = np.diff(np.asarray(stamps, dtype=float))
     if gaps.size == 0:
         return {'rate': 0.0, 'min': math.nan, 'max': math.nan, 'std_dev': math.nan,
@@ -328,46 +245,16 @@ def cmd_topic_hz(ns: argparse.Namespace) -> int:
 
 
 def cmd_node_list(ns: argparse.Namespace) -> int:
-    from .rclpy_compat import graph
-    start = time.monotonic()
-    peers = _Peers()
-
-    def endpoints_known() -> bool:
-        peers.poll()
-        return peers.endpoints_known()
-
-    # Only then read ros_discovery_info: a Fast DDS writer that learns of our reader after we
-    # learnt of it delivers its latched sample at once, not ~3 s later with its next heartbeat.
-    _listen(min(ns.wait, 0.25), endpoints_known, max_extra=3.0, start=start)
-    graph.snapshot()
-
-    def settled() -> bool:
-        return endpoints_known() and not peers.unheard(graph.announced_participants())
-
-    _listen(ns.wait, settled, start=start)
-    for namespace, name in graph.node_names_and_namespaces():
-        print(f'{namespace.rstrip("/")}/{name}')
-    shared = _shared_names(graph.snapshot())
+    from .peers import discover_nodes, full_name, shared_names
+    infos = discover_nodes(ns.wait)
+    for name in sorted({full_name(info) for info in infos}):
+        print(name)
+    shared = shared_names(infos)
     if shared:   # as ros2 node list warns: a second graph (or a second sim) on this domain?
         print('WARNING: Be aware that there are nodes in the graph that share an exact name, '
               'which can have unintended side effects (a second graph on this ROS_DOMAIN_ID?): '
               + ', '.join(f'{name} ({count})' for name, count in shared), file=sys.stderr)
     return 0
-
-
-def _shared_names(infos: list[Any]) -> list[tuple[str, int]]:
-    """(full name, how many) of each node name more than one node of the graph has."""
-    counts: dict[str, int] = {}
-    seen = set()
-    for info in infos:        # one node may be known twice (its own process's view and the wire)
-        key = (info.namespace, info.name, info.participant_gid, info.reader_gids,
-               info.writer_gids)
-        if key in seen:
-            continue
-        seen.add(key)
-        fqn = f'{info.namespace.rstrip("/")}/{info.name}'
-        counts[fqn] = counts.get(fqn, 0) + 1
-    return sorted((name, n) for name, n in counts.items() if n > 1)
 
 
 # --- bags --------------------------------------------------------------------------------------
