@@ -62,13 +62,15 @@ logging and /diagnostics as its docstring says). The reasons (counter keys):
     fused one, e.g. the same pair sent twice: one observation is fused once; counted in
     pairs_repeated, not frames_skipped; when the node's clock itself went back before that
     stamp, a restarted simulation or bag, it is fused);
-  on /vizzy/{left,right}/camera_info: 'unusable K' (not 9 finite values with fx, fy > 0; the last
-    good K stays in use);
+  on /vizzy/{left,right}/camera_info: 'unusable K' (not 9 finite values with fx, fy in
+    [1, 1e6] px; the last good K stays in use);
   for an exception escaping a subscription callback (node_tools.guarded): 'failed on an image:
     <ExcType>' (or a camera_info, a state) on that callback's topic.
-A pair's images are accepted when it was fused, or deliberately not fused during a saccade
-(frames_in_saccade); a pair replaced by a newer one before the worker took it (pairs_dropped,
-the rate limit) is neither accepted nor refused. Gaze states are always accepted.
+A pair's images are accepted when it was fused; held (not refused) when deliberately not fused:
+'in saccade' (frames_in_saccade) or 'max_rate_hz' (the rate limit, pairs_dropped); a pair
+replaced by a newer one before the worker took it (pairs_dropped) is neither. /diagnostics turns
+WARN when /stereo/points has not gone out for OUTPUT_STALL_S (or three capped pairs) while images
+arrive. Gaze states are always accepted.
 
 QoS: unlike REP 2003's sensor-data default, the four stereo inputs subscribe RELIABLE keep-last 5:
 best effort lost most pairs of fragmented VGA images (35 of 150 pairs vs 149 reliable, measured).
@@ -107,6 +109,7 @@ from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reason
     UNSUPPORTED_ENCODING,
     ConversionError,
     array_to_pointcloud2,
+    camera_k,
     image_refusal,
     image_to_numpy,
     stamp_seconds,
@@ -164,6 +167,11 @@ REPEATED_STAMP = 'not newer than the last fused pair'
 # the images); then the pair is skipped ('no camera pose').
 TF_WAIT_S = 0.5
 UNUSABLE_K = 'unusable K'
+# Held, not refused (the pair is set aside by design; /diagnostics shows `held (<reason>)`).
+IN_SACCADE = 'in saccade'
+RATE_CAP = 'max_rate_hz'
+# /stereo/points silent this long (node clock) while images arrive: a /diagnostics WARN
+OUTPUT_STALL_S = 3.0
 WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
 # After a gaze command, frames do not count towards frames_per_fixation until the saccade has
 # started (in_saccade seen) or this long has passed (a tiny or refused movement).
@@ -223,8 +231,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param('ut_beta', 2.0, 'UT beta (2 for Gaussians), in [0, 10].', '[0, 10]'),
     Param('ut_kappa', 3.0, 'UT kappa, in [-3.9, 100] (L + lambda must stay > 0).',
           '[-3.9, 100]', constraints='L + lambda > 0 with ut_alpha'),
-    Param('max_rate_hz', 2.0, 'Most stereo pairs processed per second, in (0, 30] (newest '
-          'pair wins).', '(0, 30]'),
+    Param('max_rate_hz', 2.0, 'Most stereo pairs processed per second, in [0.01, 30] (newest '
+          'pair wins).', '[0.01, 30]'),
     Param('max_stamp_skew_s', 0.005, 'Largest left/right stamp difference of a pair [s], in '
           '[0, 1].', '[0, 1]'),
     Param('ego_frame', 'ego', 'Frame of the ego-sphere and of the gaze commands '
@@ -249,7 +257,7 @@ PARAMETERS: tuple[Param, ...] = (
     Param('fixation_distance_m', [0.3, 8.0], 'A chosen cell mean is moved along its direction '
           'into this [min, max] distance [m] (the gaze controller refuses < 0.15 m and > 10 m).',
           constraints='[min, max] with 0.15 <= min < max <= 10'),
-    Param('cells_rate_hz', 1.0, f'Rate of {CELLS_TOPIC} [Hz], in (0, 30].', '(0, 30]'),
+    Param('cells_rate_hz', 1.0, f'Rate of {CELLS_TOPIC} [Hz], in [0.01, 30].', '[0.01, 30]'),
     Param('publish_unobserved_cells', False, f'Also publish never-observed cells on '
           f'{CELLS_TOPIC} (at their prior mean, 10 m away).'),
 )
@@ -311,14 +319,6 @@ def image_problem(msg: Any) -> tuple[str, str] | None:
     """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
     IMAGE_REASONS, a counter key)."""
     return image_refusal(msg, dict.fromkeys(ENCODINGS, 3))
-
-
-def intrinsics(msg: Any) -> np.ndarray | None:
-    """K (3x3) of a CameraInfo, or None if it is unusable (zero focal length, NaN, wrong size)."""
-    k = np.asarray(list(msg.k), np.float64)
-    if k.size != 9 or not np.all(np.isfinite(k)) or k[0] <= 0 or k[4] <= 0:
-        return None
-    return k.reshape(3, 3)
 
 
 def points_array(frame: StereoFrame, info: np.ndarray) -> np.ndarray:
@@ -406,6 +406,8 @@ class StereoSesNode(Node):
         self._gaze_pub = self.create_publisher(GazeCommand, GAZE_COMMAND_TOPIC, 10)
         # resolved names, for log lines
         self._image_topics = {e: self.resolve_topic_name(IMAGE_TOPICS[e]) for e in EYES}
+        self.input_health.watch_output(self._points_pub.topic_name,
+                                       list(self._image_topics.values()), self._output_stall_s)
         self._info_topics = {e: self.resolve_topic_name(INFO_TOPICS[e]) for e in EYES}
         self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
         self._image_subs: dict[str, Any] = {}
@@ -466,7 +468,7 @@ class StereoSesNode(Node):
     # --- inputs (executor thread: store only) ---------------------------------------------------
 
     def _on_camera_info(self, eye: str, msg: Any) -> None:
-        k = intrinsics(msg)
+        k = camera_k(msg)
         if k is None:       # the last usable one (if any) stays in use
             self.input_health.refuse(self._info_topics[eye], UNUSABLE_K, f'K {list(msg.k)}')
             return
@@ -529,6 +531,7 @@ class StereoSesNode(Node):
                 # machine fuses the same pairs, later, not fewer per second of video
                 if not self._pair_gate.take(t, self._p['max_rate_hz']):
                     self.pairs_dropped += 1
+                    self._hold(RATE_CAP)
                 else:
                     if self._worker.put(pair):
                         self.pairs_dropped += 1   # the worker is busy: newest pair wins
@@ -563,6 +566,16 @@ class StereoSesNode(Node):
     def _accept(self) -> None:
         for eye in EYES:
             self.input_health.accept(self._image_topics[eye])
+
+    def _hold(self, reason: str) -> None:
+        """A pair the node set aside by design (a saccade, the rate cap): held, not refused."""
+        for eye in EYES:
+            self.input_health.hold(self._image_topics[eye], reason)
+
+    def _output_stall_s(self) -> float:
+        """How long /stereo/points may be silent while images arrive: three capped pairs, 3 s at
+        least (a saccade and its settling)."""
+        return max(OUTPUT_STALL_S, 3.0 / self._p['max_rate_hz'])
 
     def _prepare(self, pair: Pair) -> tuple[np.ndarray, np.ndarray, StereoRig, np.ndarray] | None:
         """(left, right, rig in the left optical frame, ego <- left) or None (skipped, logged)."""
@@ -680,7 +693,7 @@ class StereoSesNode(Node):
                                    f'{self._p["bias"]} bias (memory reset)')
         if in_saccade:                 # saccadic suppression: the image is blurred, poses move
             self.frames_in_saccade += 1
-            self._accept()             # not a refusal: the pair is ignored by design
+            self._hold(IN_SACCADE)     # not a refusal: the pair is ignored by design
             return
         prepared = self._prepare(pair)
         if prepared is None:
@@ -695,6 +708,7 @@ class StereoSesNode(Node):
         header = Header(stamp=pair.left.header.stamp, frame_id=pair.left.header.frame_id)
         publish_from_thread(self, self._points_pub,
                             array_to_pointcloud2(points_array(frame, info), header))
+        self.input_health.published(self._points_pub.topic_name)
         with self._ses_lock:
             report = self._ses.fuse(frame.means, frame.covs, ego_left)
         self._last_fused_stamp = pair.stamp

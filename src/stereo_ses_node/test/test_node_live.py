@@ -479,7 +479,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     def boom(*_: Any, **__: Any) -> None:
         raise RuntimeError('on fire')
 
-    monkeypatch.setattr(ses_node, 'intrinsics', boom)
+    monkeypatch.setattr(ses_node, 'camera_k', boom)
     rig.publish_info()
     right_info = ses._info_subs['right'].topic_name
     for topic in (left_info, right_info):

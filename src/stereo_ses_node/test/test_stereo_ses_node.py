@@ -75,9 +75,9 @@ def test_images_and_camera_info_are_checked() -> None:
                                                                   node.UNUSABLE_K))
     info = node.CameraInfo(width=64, height=48)
     info.k = [50.0, 0.0, 32.0, 0.0, 50.0, 24.0, 0.0, 0.0, 1.0]
-    assert np.allclose(node.intrinsics(info)[0], [50.0, 0.0, 32.0])
+    assert np.allclose(node.camera_k(info)[0], [50.0, 0.0, 32.0])
     info.k = [0.0] * 9
-    assert node.intrinsics(info) is None
+    assert node.camera_k(info) is None
 
 
 def test_cloud_layouts() -> None:
