@@ -12,7 +12,8 @@ import random
 
 import pytest
 
-os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 200)))
+if not os.environ.get('ROS_DOMAIN_ID'):    # unset or empty (ROS 2 reads empty as 0): a random one
+    os.environ['ROS_DOMAIN_ID'] = str(random.Random().randint(100, 200))
 os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 
 
