@@ -1,8 +1,13 @@
+import os
 from glob import glob
 
 from setuptools import Extension, find_packages, setup
 
 package_name = 'vizzy_runtime'
+# colcon (--symlink-install) may run this file from another folder: the C source by its own path
+_SHIM = os.path.join('csrc', 'loopback_bind.c')
+if not os.path.exists(_SHIM):
+    _SHIM = os.path.join(os.path.dirname(os.path.realpath(__file__)), _SHIM)
 
 setup(
     name=package_name,
@@ -22,7 +27,7 @@ setup(
     # like an extension so that pip and colcon compile it, never imported. Optional: without a C
     # compiler the package still installs and the nodes say in one line that their sockets are
     # not confined to loopback.
-    ext_modules=[Extension('vizzy_runtime._loopback_bind', sources=['csrc/loopback_bind.c'],
+    ext_modules=[Extension('vizzy_runtime._loopback_bind', sources=[_SHIM],
                            libraries=['dl'], optional=True)],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -30,7 +35,6 @@ setup(
     maintainer_email='vizzy-active-vision@users.noreply.github.com',
     description='ROS seam, numpy conversions, ROS-less CLI and rosbag2 tools for the Vizzy stack',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'vizzy = vizzy_runtime.cli:console_main',
