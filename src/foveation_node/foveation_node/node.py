@@ -7,8 +7,9 @@ Subscribes /vizzy/left/image_raw (sensor data QoS, rgb8 or bgr8), foveates each 
 current fixation with core.foveation.Foveator (section 2.3.1) and publishes
 
   /foveation/image             sensor_msgs/Image, same encoding and header as the input
-  /foveation/image/compressed  sensor_msgs/CompressedImage, format 'jpeg' (cv2.imencode at
-                               jpeg_quality), same header
+  /foveation/image/compressed  sensor_msgs/CompressedImage, JPEG (cv2.imencode at
+                               jpeg_quality), same header; format '<encoding>; jpeg compressed
+                               bgr8' as image_transport's compressed transport writes it
 
 Every ~10 s it logs the bandwidth: the foveated frame's JPEG against the raw frame's JPEG at the
 same quality (the raw one is encoded only for that one frame, not for every frame).
@@ -504,7 +505,8 @@ class FoveationNode(Node):
 
         quality = self._p['jpeg_quality']
         jpeg = encode_jpeg(out, msg.encoding, quality)
-        compressed = CompressedImage(format='jpeg')
+        # image_transport's format string: its subscribers (republish, RViz) decode by it
+        compressed = CompressedImage(format=f'{msg.encoding}; jpeg compressed bgr8')
         compressed.header = msg.header
         compressed.data = (array.array('B', jpeg) if USING_REAL_ROS
                            else np.frombuffer(jpeg, np.uint8))

@@ -103,7 +103,7 @@ def test_foveates_and_compresses(graph) -> None:
     assert _high_pass(out)[corner].mean() < 0.3 * _high_pass(scene)[corner].mean()
 
     jpeg = camera.jpegs[-1]
-    assert jpeg.format == 'jpeg' and jpeg.header.stamp.sec == 42
+    assert jpeg.format == 'rgb8; jpeg compressed bgr8' and jpeg.header.stamp.sec == 42
     data = np.asarray(jpeg.data, dtype=np.uint8)
     decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
     assert decoded is not None and decoded.shape == (HEIGHT, WIDTH, 3)
