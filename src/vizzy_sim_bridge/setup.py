@@ -26,6 +26,7 @@ setup(
             'sim = vizzy_sim_bridge.sim_node:main',
             'gaze_controller = vizzy_gaze.gaze_controller_node:main',
             'vizzy_head_urdf = vizzy_sim_bridge.head_urdf:main',
+            'vizzy_camera_calibration = vizzy_sim_bridge.camera_calibration:main',
         ],
     },
 )

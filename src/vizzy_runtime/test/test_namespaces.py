@@ -42,7 +42,9 @@ DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {
         '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/vizzy/left/camera_info',
         '/vizzy/right/camera_info', '/vizzy/rgbd/image_raw', '/vizzy/rgbd/depth/image_raw',
         '/vizzy/rgbd/points', '/vizzy/rgbd/camera_info', '/joint_states', '/tf', '/tf_static',
-        '/clock', '/sim/ground_truth/objects', '/robot_description')}
+        '/clock', '/sim/ground_truth/objects', '/robot_description',
+        '/vizzy/left/image_raw/compressed', '/vizzy/right/image_raw/compressed',
+        '/vizzy/rgbd/image_raw/compressed')}
         | {('sub', '/vizzy/joint_commands')},
     'gaze_controller': TF | {('sub', '/gaze/command'), ('sub', '/joint_states'),
                              ('pub', '/gaze/state'), ('pub', '/vizzy/joint_commands')},

@@ -10,6 +10,11 @@ Publishes (frames and QoS in docs/vizzy_sim_bridge.md):
   /vizzy/{left,right}/image_raw (rgb8) + camera_info       every 1/rate_hz
   /vizzy/rgbd/image_raw (rgb8), /vizzy/rgbd/depth/image_raw (32FC1 [m], NaN invalid),
   /vizzy/rgbd/points (organized x y z rgb), /vizzy/rgbd/camera_info   every 1/rgbd_rate_hz
+  /vizzy/{left,right,rgbd}/image_raw/compressed (sensor_msgs/CompressedImage, JPEG at
+      jpeg_quality, image_transport's format string: compressed.py), with each image, encoded
+      only while something subscribes (jpeg_encodes counts them)
+  camera_info: computed from MuJoCo's camera, or the calibration file at
+      <camera>_camera_info_url (camera_calibration.py) when one is given and usable
   /joint_states, /tf                                       every 1/joint_state_rate_hz, and at
                                                            each image's stamp
   /tf_static (latched), /clock
@@ -74,6 +79,14 @@ from vizzy_runtime.ros import (
     qos_profile_latched,
 )
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
+from vizzy_sim_bridge import compressed
+from vizzy_sim_bridge.camera_calibration import (
+    CAMERA_NAMES,
+    Calibration,
+    CalibrationError,
+    load_calibration,
+    sim_calibration,
+)
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
 from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
 from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
@@ -88,7 +101,7 @@ from vizzy_sim_bridge.messages import (  # noqa: F401 (box_corners, image_box: r
     stamp_msg,
     transform_messages,
 )
-from vizzy_vision.camera import camera_matrix, projection_matrix
+from vizzy_vision.camera import camera_matrix
 from vizzy_vision.kinematics import (
     BASELINE,
     CAMERA_FRAMES,
@@ -102,6 +115,7 @@ from vizzy_vision.kinematics import (
 )
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
+CompressedImage = message('sensor_msgs/msg/CompressedImage')
 Clock = message('rosgraph_msgs/msg/Clock')
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
@@ -177,6 +191,15 @@ PARAMETERS: tuple[Param, ...] = (
           constraints=f'{len(JOINT_NAMES)} finite values', read_only=True),
     Param('render_backend', 'auto', 'OpenGL for rendering: auto (EGL, else OSMesa), egl or '
           'osmesa (read-only).', choices=('auto', 'egl', 'osmesa'), read_only=True),
+    Param('jpeg_quality', compressed.DEFAULT_JPEG_QUALITY, 'JPEG quality of the '
+          '<image>/compressed streams, in [1, 100] (image_transport\'s default: 95).',
+          '[1, 100]'),
+    *(Param(f'{cam}_camera_info_url', '', f'camera_info_manager URL of the {cam} camera\'s '
+            'calibration (camera_calibration_parsers YAML): file:///<path> or '
+            'package://<package>/<path>, ${NAME} = ' + CAMERA_NAMES[cam] + '. Published as its '
+            'camera_info instead of the one computed from MuJoCo; empty: the computed one '
+            '(read-only).', read_only=True)
+      for cam in ('left', 'right', 'rgbd')),
     Param('ground_truth_rate_hz', 1.0, 'Rate of republishing /sim/ground_truth/objects [Hz], '
           'in [0.01, 100].', '[0.01, 100]'),
     Param('publish_clock', True,
@@ -260,10 +283,20 @@ class SimNode(Node):
         self._rgbd_cam = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, 'rgbd_camera')
         self._k_eye = camera_matrix(eye.width, eye.height, eye.hfov_deg)
         self._k_rgbd = camera_matrix(rgbd.width, rgbd.height, rgbd.hfov_deg)
-        self._info = {'left': self._camera_info(self._k_eye, eye, 0.0, CAMERA_FRAMES['left']),
-                      'right': self._camera_info(self._k_eye, eye, BASELINE,
-                                                 CAMERA_FRAMES['right']),
-                      'rgbd': self._camera_info(self._k_rgbd, rgbd, 0.0, RGBD_FRAME)}
+        # what each camera_info says: MuJoCo's ideal pinhole, or the user's file; the rendering
+        # (and the cloud, the ground-truth boxes) stays MuJoCo's camera either way
+        computed = {'left': sim_calibration(CAMERA_NAMES['left'], eye.width, eye.height,
+                                            eye.hfov_deg),
+                    'right': sim_calibration(CAMERA_NAMES['right'], eye.width, eye.height,
+                                             eye.hfov_deg, BASELINE),
+                    'rgbd': sim_calibration(CAMERA_NAMES['rgbd'], rgbd.width, rgbd.height,
+                                            rgbd.hfov_deg)}
+        frames = {'left': CAMERA_FRAMES['left'], 'right': CAMERA_FRAMES['right'],
+                  'rgbd': RGBD_FRAME}
+        self.calibration_sources: dict[str, str] = {}   # camera -> 'computed' or the URL
+        self._info = {cam: self._camera_info(self._calibration(cam, computed[cam]), frames[cam])
+                      for cam in computed}
+        self.jpeg_encodes = 0                   # <image>/compressed frames encoded
         self._projector = DepthProjector(self._k_rgbd, rgbd.width, rgbd.height)
         self._noise_rng = np.random.default_rng(np.random.SeedSequence([int(p['seed']), 99]))
         self._last_tf_ns = -1
@@ -275,9 +308,14 @@ class SimNode(Node):
         sensor = SENSOR_QOS
         self._image_pubs = {e: self.create_publisher(Image, IMAGE_TOPICS[e], sensor)
                             for e in EYES}
+        # image_transport's compressed transport beside each raw image, encoded when read
+        self._compressed_pubs = {e: self.create_publisher(
+            CompressedImage, IMAGE_TOPICS[e] + compressed.SUFFIX, sensor) for e in EYES}
         self._info_pubs = {e: self.create_publisher(CameraInfo, INFO_TOPICS[e], sensor)
                            for e in EYES}
         self._rgbd_image_pub = self.create_publisher(Image, RGBD_IMAGE_TOPIC, sensor)
+        self._rgbd_compressed_pub = self.create_publisher(
+            CompressedImage, RGBD_IMAGE_TOPIC + compressed.SUFFIX, sensor)
         self._rgbd_depth_pub = self.create_publisher(Image, RGBD_DEPTH_TOPIC, sensor)
         self._rgbd_points_pub = self.create_publisher(message('sensor_msgs/msg/PointCloud2'),
                                                       RGBD_POINTS_TOPIC, sensor)
@@ -332,7 +370,8 @@ class SimNode(Node):
             f'{eye.width}x{eye.height} stereo at {p["rate_hz"]} Hz, RGB-D at {p["rgbd_rate_hz"]} '
             f'Hz, physics at {1.0 / self._sim.dt:.0f} Hz, rendering with '
             f'{self._backend} in its own thread; cameras on '
-            f'{", ".join(self._image_pubs[e].topic_name for e in EYES)} (+ camera_info), RGB-D on '
+            f'{", ".join(self._image_pubs[e].topic_name for e in EYES)} (+ /compressed, '
+            f'camera_info), RGB-D on '
             f'{self._rgbd_points_pub.topic_name}, {self._joint_pub.topic_name}, '
             f'{self._tf_pub.topic_name}, {self._description_pub.topic_name}'
             f'{", " + self._clock_pub.topic_name if self._clock_pub is not None else ""}; '
@@ -347,15 +386,43 @@ class SimNode(Node):
         return self.get_clock().now().to_msg()
 
 
-    def _camera_info(self, k: np.ndarray, spec: CameraSpec, baseline_m: float,
-                     frame_id: str) -> Any:
-        info = CameraInfo(width=spec.width, height=spec.height, distortion_model='plumb_bob')
+    def _calibration(self, cam: str, computed: Calibration) -> Calibration:
+        """The file at <cam>_camera_info_url if one is set and usable, else computed (with one
+        error line saying why the file is not used)."""
+        param = f'{cam}_camera_info_url'
+        url = str(self._p[param])
+        self.calibration_sources[cam] = 'computed'
+        if not url:
+            return computed
+        try:
+            cal = load_calibration(url, computed.camera_name, computed.width, computed.height)
+        except CalibrationError as exc:
+            self.get_logger().error(f'{param}: {exc}; publishing the calibration computed '
+                                    f'from MuJoCo (fx {computed.k[0]:.3f} px)')
+            return computed
+        if cal.camera_name != computed.camera_name:   # as camera_info_manager: a warning
+            self.get_logger().warning(f'{param}: the file is for camera {cal.camera_name!r}, '
+                                      f'this is {computed.camera_name!r}; using it')
+        self.get_logger().info(f'{param}: {cal.camera_name} calibration from {url} (fx '
+                               f'{cal.k[0]:.3f} px; images rendered with fx '
+                               f'{computed.k[0]:.3f} px)')
+        self.calibration_sources[cam] = url
+        return cal
+
+    @staticmethod
+    def _camera_info(cal: Calibration, frame_id: str) -> Any:
+        info = CameraInfo(width=cal.width, height=cal.height,
+                          distortion_model=cal.distortion_model)
         info.header.frame_id = frame_id
-        info.d = float_seq([0.0] * 5)
-        info.k = np.ascontiguousarray(k, dtype=np.float64).reshape(9)
-        info.r = np.eye(3).reshape(9)
-        info.p = np.ascontiguousarray(projection_matrix(k, baseline_m)).reshape(12)
+        info.d = float_seq(cal.d)
+        info.k = np.asarray(cal.k, dtype=np.float64)
+        info.r = np.asarray(cal.r, dtype=np.float64)
+        info.p = np.asarray(cal.p, dtype=np.float64)
         return info
+
+    def _compressed(self, image: np.ndarray, header: Any) -> Any:
+        self.jpeg_encodes += 1
+        return compressed.compressed_image(image, 'rgb8', header, int(self._p['jpeg_quality']))
 
     def _publish_joints(self, t: float, position: np.ndarray, velocity: np.ndarray,
                         effort: np.ndarray) -> None:
@@ -517,6 +584,8 @@ class SimNode(Node):
                                            width=self._eye.width, height=self._eye.height)
             header = Header(stamp=stamp, frame_id=CAMERA_FRAMES[e])
             publish_from_thread(self, self._image_pubs[e], numpy_to_image(rgb, 'rgb8', header))
+            if has_subscribers(self._compressed_pubs[e]):    # a JPEG only for a reader
+                publish_from_thread(self, self._compressed_pubs[e], self._compressed(rgb, header))
             info = self._info[e]
             info.header.stamp = stamp
             publish_from_thread(self, self._info_pubs[e], info)
@@ -535,6 +604,7 @@ class SimNode(Node):
         header = Header(stamp=stamp, frame_id=RGBD_FRAME)
         # built only for readers: the depth image is 1.2 MB, the organized cloud 4.9 MB
         for pub, make in ((self._rgbd_image_pub, lambda: numpy_to_image(rgb, 'rgb8', header)),
+                          (self._rgbd_compressed_pub, lambda: self._compressed(rgb, header)),
                           (self._rgbd_depth_pub, lambda: numpy_to_image(z, '32FC1', header)),
                           (self._rgbd_points_pub, lambda: array_to_pointcloud2(
                               self._projector.cloud(z, rgb), header, is_dense=False))):
