@@ -31,10 +31,10 @@ TOO_SMALL_FOR_LEVELS, UNUSABLE_K): on /vizzy/left/image_raw 'unsupported encodin
 rgb8/bgr8), 'empty image' (zero width or height), 'too large' (beyond max_width x max_height),
 'step shorter than a row', 'size inconsistent with data' (fewer data bytes than height x step),
 'fixation outside image', 'too small for levels' (min(width, height) < 2^levels); on
-/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy in [1, 1e6] px; the last good one
-stays in use); and, for an exception escaping a callback (node_tools.guarded), 'failed on an
-image: <ExcType>' (or a camera_info, a state). The refused frame is skipped and the node keeps
-running.
+/vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy in [1, 1e6] px; the
+last good one stays in use); and, for an exception escaping a callback (node_tools.guarded),
+'failed on an image: <ExcType>' (or a camera_info, a state). The refused frame is skipped and the
+node keeps running.
 
 Recognition (section 2.3.2, Fig. 2.5; core.recognition): at most recognition_rate_hz in the
 images' own time (their stamps: sim time in the graph, so a loaded machine recognises the same

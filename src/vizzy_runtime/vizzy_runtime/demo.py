@@ -31,7 +31,10 @@ REPO = Path(__file__).resolve().parents[3]
 READY_TOPICS = ('/vizzy/left/image_raw', '/gaze/state')
 # Not recorded by the demo: 4.9 MB per organized cloud would make most of the bag, and the cloud
 # is the depth image (recorded) back-projected with the recorded RGB-D camera_info.
-DEMO_EXCLUDE = ('/vizzy/rgbd/points',)
+# The cloud (4.9 MB a frame) and the cameras' JPEG copies of images the bag holds raw (recording
+# them would make the sim encode ~32 JPEGs a second for nothing).
+DEMO_EXCLUDE = ('/vizzy/rgbd/points', '/vizzy/left/image_raw/compressed',
+                '/vizzy/right/image_raw/compressed', '/vizzy/rgbd/image_raw/compressed')
 
 
 def _wait_for_graph(timeout: float) -> bool:
