@@ -67,8 +67,8 @@ a frame does not reset the tracker as a new size would), 'unusable frame' (the t
 FrameError); on /vizzy/left/camera_info 'unusable K' (not 9 finite values with fx, fy in
 [1, 1e6] px; the last good one stays in use); and, for an exception escaping a callback
 (node_tools.guarded), 'failed on an image: <ExcType>' (or a camera_info, a state). A refused
-image is dropped (frames_dropped), the tracks untouched. Changing k_max, s_max, alpha_c, alpha_s or budget_ms keeps the tracks;
-changing a detector setting restarts the tracker.
+image is dropped (frames_dropped), the tracks untouched. Changing k_max, s_max, alpha_c, alpha_s
+or budget_ms keeps the tracks; changing a detector setting restarts the tracker.
 
 The detector comes from the module-level DETECTOR_FACTORY(params) (HOG from the detector
 parameters); tests replace it with a stub that needs no real people.
