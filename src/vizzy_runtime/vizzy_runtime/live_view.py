@@ -66,7 +66,7 @@ BURST_PAUSE_S = 0.01
 # channel, as a viewer wants); other topics (/tf, markers) carry parts of the state in each message.
 FRAME_TYPES = frozenset({
     'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage', 'sensor_msgs/msg/PointCloud2',
-    'sensor_msgs/msg/LaserScan', 'stereo_msgs/msg/DisparityImage',
+    'sensor_msgs/msg/LaserScan',
 })
 # After a client leaves: its outbox (up to CLIENT_BACKLOG frames) went back to glibc's arenas,
 # which keep it; malloc_trim returns it to the system. A second lets the SDK drop the client.
