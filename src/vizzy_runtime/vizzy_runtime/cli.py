@@ -4,11 +4,15 @@
     vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S]
                  [--view-port P | --no-view]
     vizzy view [--port 8765] [--host ADDR]            (Foxglove live view of the running graph)
-    vizzy topic list [-t] | echo <topic> [-n N] | hz <topic> [--duration S]
-    vizzy node list
+    vizzy topic list [-t] | echo <topic> [type] [--once] | hz <topic> [--duration S]
+              | info <topic> [-v] | pub <topic> <type> '<yaml>' [-r HZ] [-1 | -t N] [-w N]
+    vizzy node list | info <node>
     vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
     vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE]
               | info <bag> [--check] | reindex <bag>
+
+Each verb has ros2's flags and prints what ros2 prints (cli_topic.py, cli_node.py,
+param_cli.py).
 
 Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
 the same topics. Errors are one line naming what and where; the exit code is non-zero.
@@ -18,20 +22,19 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import signal
 import sys
 import threading
-import time
-from collections.abc import Sequence
 from typing import Any, NoReturn
 
+from .cli_types import (
+    die,
+    nonnegative_seconds,
+    positive_number,
+    positive_seconds,
+)
+
 DEFAULT_VIEW_PORT = 8765   # Foxglove's default (live_view.DEFAULT_PORT; not imported: it is slow)
-
-
-def _die(message: str, code: int = 2) -> int:
-    print(f'vizzy: {message}', file=sys.stderr)
-    return code
 
 
 # --- run / launch ------------------------------------------------------------------------------
@@ -98,7 +101,7 @@ def cmd_view(ns: argparse.Namespace) -> int:
     try:
         view.start()
     except Exception as exc:  # noqa: BLE001 - e.g. the port is taken
-        return _die(f'view: cannot serve on {view.host}:{ns.port} ({exc})')
+        return die(f'view: cannot serve on {view.host}:{ns.port} ({exc})')
     print(f'serving the graph to Foxglove on {view.url} (Open connection > Foxglove WebSocket; '
           'layout: src/vizzy_runtime/config/foxglove_layout.json); Ctrl-C to stop', flush=True)
     done = threading.Event()
@@ -116,147 +119,6 @@ def cmd_view(ns: argparse.Namespace) -> int:
     return 0
 
 
-# --- topics ------------------------------------------------------------------------------------
-
-def _wait_for_type(topic: str, typename: str | None, timeout: float) -> tuple[str, Any]:
-    from . import dds
-    disc = dds.Discovery()
-    deadline = time.monotonic() + timeout
-    while True:
-        writers = [ep for ep in disc.endpoints() if ep.is_writer and ep.topic == topic]
-        if writers or (typename and time.monotonic() > deadline):
-            break
-        if time.monotonic() > deadline:
-            raise TimeoutError(f'no publisher on {topic} after {timeout:g} s (give --type to wait '
-                               'anyway)')
-        time.sleep(0.05)
-    types = {ep.typename for ep in writers}
-    if typename is None:
-        if len(types) > 1:
-            raise ValueError(f'{topic} has publishers of several types: {", ".join(sorted(types))}')
-        typename = types.pop()
-    # Adapt to the publishers like ros2 topic echo: reliable only if all are, latched if all are.
-    qos = dds.QoS(reliable=bool(writers) and all(ep.qos.reliable for ep in writers),
-                  transient_local=bool(writers) and all(ep.qos.transient_local for ep in writers),
-                  depth=10)
-    return typename, qos
-
-
-def cmd_topic_list(ns: argparse.Namespace) -> int:
-    from . import dds
-    from .peers import Peers, listen
-    disc = dds.Discovery()
-    peers = Peers()
-
-    def settled() -> bool:
-        peers.poll()
-        return peers.endpoints_known()
-
-    listen(ns.wait, settled)  # discovery is asynchronous: listen before answering
-    topics: dict[str, set[str]] = {}
-    for ep in disc.endpoints():
-        topics.setdefault(ep.topic, set()).add(ep.typename)
-    for name in sorted(topics):
-        print(f'{name} [{", ".join(sorted(topics[name]))}]' if ns.show_types else name)
-    return 0
-
-
-def to_yaml(msg: Any, indent: int = 0, max_array: int = 16) -> str:
-    """`ros2 topic echo`-style text; long arrays are cut to their first elements."""
-    import numpy as np  # not at the top: a Ctrl-C during a bag command's start-up is handled
-    pad = '  ' * indent
-    fields = (list(msg.get_fields_and_field_types())
-              if hasattr(msg, 'get_fields_and_field_types') else [])
-    lines = []
-    for name in fields:
-        value = getattr(msg, name)
-        if hasattr(type(value), '__msgtype__'):
-            lines.append(f'{pad}{name}:\n{to_yaml(value, indent + 1, max_array)}')
-        elif (isinstance(value, (list, np.ndarray)) and len(value)
-              and hasattr(type(value[0]), '__msgtype__')):
-            lines.append(f'{pad}{name}:')
-            for item in value[:max_array]:
-                body = to_yaml(item, indent + 2, max_array).lstrip()
-                lines.append(f'{pad}- {body}')
-            if len(value) > max_array:
-                lines.append(f'{pad}- \'...\' ({len(value)} items)')
-        elif isinstance(value, (list, np.ndarray)):
-            items = list(value[:max_array])
-            text = ', '.join(repr(v.item()) if hasattr(v, 'item') else repr(v) for v in items)
-            more = f', ... ({len(value)} items)' if len(value) > max_array else ''
-            lines.append(f'{pad}{name}: [{text}{more}]')
-        else:
-            lines.append(f'{pad}{name}: {value!r}' if isinstance(value, str)
-                         else f'{pad}{name}: {value}')
-    return '\n'.join(lines)
-
-
-def cmd_topic_echo(ns: argparse.Namespace) -> int:
-    from . import dds, msgs
-    typename, qos = _wait_for_type(ns.topic, ns.type and msgs.normalize_type_name(ns.type),
-                                   ns.timeout)
-    reader = dds.RawReader(ns.topic, typename, qos)
-    shown = 0
-    while ns.count is None or shown < ns.count:
-        batch = reader.take(16)
-        if not batch:
-            time.sleep(0.005)
-            continue
-        for raw, _stamp in batch:
-            try:
-                print(to_yaml(msgs.deserialize(raw, typename)) + '\n---', flush=True)
-            except Exception as err:  # noqa: BLE001 - report and keep echoing
-                print(f'vizzy: {ns.topic}: cannot decode a {typename} sample: {err}',
-                      file=sys.stderr)
-            shown += 1
-            if ns.count is not None and shown >= ns.count:
-                break
-    return 0
-
-
-def rate_stats(stamps: Sequence[float]) -> dict[str, float]:
-    """ros2 topic hz's figures from receive times (s)."""
-    import numpy as np
-    gaps = np.diff(np.asarray(stamps, dtype=float))
-    if gaps.size == 0:
-        return {'rate': 0.0, 'min': math.nan, 'max': math.nan, 'std_dev': math.nan,
-                'window': len(stamps)}
-    return {'rate': float(1.0 / gaps.mean()), 'min': float(gaps.min()), 'max': float(gaps.max()),
-            'std_dev': float(gaps.std()), 'window': int(gaps.size + 1)}
-
-
-def cmd_topic_hz(ns: argparse.Namespace) -> int:
-    from . import dds
-    typename, qos = _wait_for_type(ns.topic, ns.type, ns.timeout)
-    reader = dds.RawReader(ns.topic, typename, qos)
-    stamps: list[float] = []
-    start = last_print = time.monotonic()
-    while ns.duration is None or time.monotonic() - start < ns.duration:
-        for _ in reader.take(64):
-            stamps.append(time.monotonic())
-        stamps = stamps[-ns.window:]
-        if time.monotonic() - last_print >= 1.0 and len(stamps) > 1:
-            s = rate_stats(stamps)
-            print(f"average rate: {s['rate']:.3f}\n\tmin: {s['min']:.3f}s max: {s['max']:.3f}s "
-                  f"std dev: {s['std_dev']:.5f}s window: {s['window']}", flush=True)
-            last_print = time.monotonic()
-        time.sleep(0.001)
-    return 0
-
-
-def cmd_node_list(ns: argparse.Namespace) -> int:
-    from .peers import discover_nodes, full_name, shared_names
-    infos = discover_nodes(ns.wait)
-    for name in sorted({full_name(info) for info in infos}):
-        print(name)
-    shared = shared_names(infos)
-    if shared:   # as ros2 node list warns: a second graph (or a second sim) on this domain?
-        print('WARNING: Be aware that there are nodes in the graph that share an exact name, '
-              'which can have unintended side effects (a second graph on this ROS_DOMAIN_ID?): '
-              + ', '.join(f'{name} ({count})' for name, count in shared), file=sys.stderr)
-    return 0
-
-
 # --- bags --------------------------------------------------------------------------------------
 
 def _print_counts(counts: dict[str, int]) -> None:
@@ -266,7 +128,7 @@ def _print_counts(counts: dict[str, int]) -> None:
 
 def cmd_bag_record(ns: argparse.Namespace) -> int:
     if not ns.all and not ns.topics:
-        return _die('bag record: give topics to record or -a/--all (as ros2 bag record)')
+        return die('bag record: give topics to record or -a/--all (as ros2 bag record)')
     # SIGINT/SIGTERM at any moment from here ends the recording with the bag finished. Until the
     # Recorder exists (the bag package's imports take seconds on a loaded machine) a signal is
     # only noted and stops it as soon as it does; Python's own handler would raise
@@ -340,38 +202,6 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f'{self.prog}: {message} (see {self.prog} --help)\n')
 
 
-def _seconds(text: str, *, zero: bool) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'{text!r} is not a number of seconds') from None
-    if not math.isfinite(value) or value < 0 or (value == 0 and not zero):
-        raise argparse.ArgumentTypeError(
-            f'{text!r}: expected a {"non-negative" if zero else "positive"} number of seconds')
-    return value
-
-
-def positive_seconds(text: str) -> float:
-    """argparse type: a finite number of seconds > 0."""
-    return _seconds(text, zero=False)
-
-
-def nonnegative_seconds(text: str) -> float:
-    """argparse type: a finite number of seconds >= 0."""
-    return _seconds(text, zero=True)
-
-
-def positive_number(text: str) -> float:
-    """argparse type: a finite number > 0 (a playback rate)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f'{text!r}: expected a positive number')
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog='vizzy', description=__doc__,
                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -412,36 +242,9 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument('--duration', type=positive_seconds, help='stop after this many seconds')
     view.set_defaults(func=cmd_view)
 
-    topic = sub.add_parser('topic', help='inspect topics').add_subparsers(
-        dest='topic_verb', required=True)
-    tl = topic.add_parser('list')
-    tl.add_argument('-t', '--show-types', action='store_true')
-    tl.add_argument('--wait', type=nonnegative_seconds, default=1.0,
-                    help='seconds to listen for discovery at least; then until every ROS 2 process '
-                         'seen has shown its readers and writers (at most 5 s more)')
-    tl.set_defaults(func=cmd_topic_list)
-    for name, func in (('echo', cmd_topic_echo), ('hz', cmd_topic_hz)):
-        t = topic.add_parser(name)
-        t.add_argument('topic')
-        t.add_argument('--type', help='message type, if no publisher is up yet')
-        t.add_argument('--timeout', type=positive_seconds, default=10.0,
-                       help='seconds to wait for a publisher')
-        if name == 'echo':
-            t.add_argument('-n', '--count', type=int, help='exit after this many messages')
-        else:
-            t.add_argument('--window', type=int, default=100)
-            t.add_argument('--duration', type=positive_seconds, help='exit after this many seconds')
-        t.set_defaults(func=func)
-
-    node = sub.add_parser('node', help='inspect nodes').add_subparsers(
-        dest='node_verb', required=True)
-    nl = node.add_parser('list')
-    nl.add_argument('--wait', type=nonnegative_seconds, default=1.0,
-                    help='seconds to listen for discovery at least; then until every ROS 2 process '
-                         'seen has announced its nodes (at most 5 s more)')
-    nl.set_defaults(func=cmd_node_list)
-
-    from . import param_cli
+    from . import cli_node, cli_topic, param_cli
+    cli_topic.add_parser(sub)
+    cli_node.add_parser(sub)
     param_cli.add_parser(sub)
 
     bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(
@@ -490,7 +293,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 0
     except (_bag_error(), ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
-        return _die(str(err))
+        # a KeyError's str() is its repr ("'foo/msg/Bar'"): print its message instead
+        return die(str(err.args[0]) if isinstance(err, KeyError) and err.args else str(err))
 
 
 def console_main() -> NoReturn:

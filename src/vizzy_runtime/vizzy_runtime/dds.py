@@ -374,7 +374,9 @@ class RawReader:
 
 @dataclass(frozen=True)
 class Endpoint:
-    """A discovered DDS endpoint carrying a ROS topic."""
+    """A discovered DDS endpoint carrying a ROS topic (or, from Discovery.service_endpoints(), a
+    service's request or reply topic: topic is then the service name, typename the service type
+    pkg/srv/Name)."""
 
     topic: str
     typename: str
@@ -382,6 +384,32 @@ class Endpoint:
     guid: bytes
     participant_guid: bytes
     is_writer: bool
+    dds_qos: Any = None       # the full discovered QoS (cyclonedds Qos): `vizzy topic info -v`
+    type_hash: str = ''       # RIHS01_... from the endpoint's USER_DATA, '' if it has none
+    is_request: bool = False  # service endpoints: the request topic (rq...Request)
+
+
+def service_of(dds_topic: str, dds_type: str) -> tuple[str, str, bool] | None:
+    """(service name, pkg/srv/Name, is_request) of a service's DDS topic as rmw_cyclonedds_cpp
+    and rmw_fastrtps_cpp name them (`rq/<name>Request` + `pkg::srv::dds_::Name_Request_`,
+    `rr/<name>Reply` + `..._Response_`); None for anything else."""
+    for prefix, suffix, half in (('rq/', 'Request', '_Request_'), ('rr/', 'Reply', '_Response_')):
+        if dds_topic.startswith(prefix) and dds_topic.endswith(suffix) and dds_type.endswith(half):
+            parts = dds_type[:-len(half)].split('::')
+            if len(parts) == 4 and parts[1] == 'srv' and parts[2] == 'dds_':
+                name = dds_topic[2:-len(suffix)]
+                return name, f'{parts[0]}/srv/{parts[3]}', prefix == 'rq/'
+    return None
+
+
+def _type_hash(qos: Any) -> str:
+    for policy in qos or ():
+        if isinstance(policy, Policy.Userdata):
+            for item in bytes(policy.data).decode(errors='replace').split(';'):
+                key, _, value = item.partition('=')
+                if key == 'typehash':
+                    return value
+    return ''
 
 
 class Discovery:
@@ -397,6 +425,14 @@ class Discovery:
         self._readers = [(BuiltinDataReader(dp, BuiltinTopicDcpsPublication), True),
                          (BuiltinDataReader(dp, BuiltinTopicDcpsSubscription), False)]
         self._endpoints: dict[bytes, Endpoint] = {}
+        self._services: dict[bytes, Endpoint] = {}
+
+    def service_endpoints(self) -> list[Endpoint]:
+        """The services' request/reply readers and writers seen (Endpoint.topic: the service
+        name, .typename: pkg/srv/Name). A server has a request reader, a client a request
+        writer."""
+        self.endpoints()
+        return list(self._services.values())
 
     def endpoints(self) -> list[Endpoint]:
         for reader, is_writer in self._readers:
@@ -412,10 +448,18 @@ class Discovery:
                 typename = msgs.ros_type_from_dds(sample.type_name or '')
                 if not alive:
                     self._endpoints.pop(key, None)
+                    self._services.pop(key, None)
                 elif ros_topic and typename:
                     self._endpoints[key] = Endpoint(ros_topic, typename, QoS.from_dds(sample.qos),
                                                     key,
-                                                    sample.participant_key.bytes, is_writer)
+                                                    sample.participant_key.bytes, is_writer,
+                                                    sample.qos, _type_hash(sample.qos))
+                elif service := service_of(sample.topic_name or '', sample.type_name or ''):
+                    self._services[key] = Endpoint(service[0], service[1],
+                                                   QoS.from_dds(sample.qos), key,
+                                                   sample.participant_key.bytes, is_writer,
+                                                   sample.qos, _type_hash(sample.qos),
+                                                   service[2])
         return list(self._endpoints.values())
 
     def topics(self) -> dict[str, str]:

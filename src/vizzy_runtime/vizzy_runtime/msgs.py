@@ -226,7 +226,8 @@ def _make_class(registry: _Registry, typename: str) -> type:
         if owner == typename:
             factories[name] = lambda value=value: value
     arrays = {name: spec for name, desc in fields if (spec := _primitive_array(desc))}
-    pkg, _, short = typename.split('/')
+    sequences = {name for name, (_dtype, length) in arrays.items() if length is None}
+    pkg, kind, short = typename.split('/')
 
     def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
         if len(args) > len(names):
@@ -252,8 +253,12 @@ def _make_class(registry: _Registry, typename: str) -> type:
         return True
 
     def __repr__(self: Any) -> str:
-        inner = ', '.join(f'{n}={getattr(self, n)!r}' for n in names)
-        return f'{pkg}.msg.{short}({inner})'
+        # as rclpy's generated __repr__: a sequence of numbers prints as a list (rclpy keeps it
+        # in an array.array and strips the 'array(...)'), a fixed-size array as numpy's repr
+        inner = ', '.join(
+            f'{n}={getattr(self, n).tolist()!r}' if n in sequences else f'{n}={getattr(self, n)!r}'
+            for n in names)
+        return f'{pkg}.{kind}.{short}({inner})'
 
     namespace: dict[str, Any] = {
         '__slots__': tuple('_' + n if n in arrays else n for n in names),

@@ -1,0 +1,160 @@
+"""Issue 29 items 1 and 6, without a graph: `vizzy topic echo`'s YAML is ros2's (valid YAML for
+message arrays, `false`, '...' after --truncate-length), `topic pub` values, and one-line errors
+for a mistyped type and a `topic hz` with nothing to hear."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+
+from vizzy_runtime import msg_yaml, msgs
+
+VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
+
+
+def vizzy(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def one_line_error(proc: subprocess.CompletedProcess[str]) -> str:
+    assert proc.returncode != 0 and 'Traceback' not in proc.stderr, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+# --- topic echo: ros2's YAML ---------------------------------------------------------------------
+
+def _cylinders() -> object:
+    C = msgs.get_message('active_vision_msgs/msg/Cylinder')
+    arr = msgs.get_message('active_vision_msgs/msg/CylinderArray')(
+        cylinders=[C(id=1, label='cup', radius=0.04), C(id=2, label='true')])
+    arr.header.frame_id = 'base_link'
+    arr.cylinders[0].center.x = 0.5
+    return arr
+
+
+def test_echo_of_a_message_array_is_ros2_yaml() -> None:
+    """cli.py's to_yaml indented items by indent + 2 and printed Python's True/False: not YAML
+    (issue 29 item 6). The text is now rosidl_runtime_py.message_to_yaml's, to the byte."""
+    text = msg_yaml.to_yaml(_cylinders())
+    assert text == (
+        'header:\n  stamp:\n    sec: 0\n    nanosec: 0\n  frame_id: base_link\n'
+        'cylinders:\n'
+        '- id: 1\n  label: cup\n'
+        '  center:\n    x: 0.5\n    y: 0.0\n    z: 0.0\n'
+        '  axis:\n    x: 0.0\n    y: 0.0\n    z: 0.0\n'
+        '  radius: 0.04\n  height: 0.0\n  confidence: 0.0\n  fit_quality: 0.0\n'
+        "- id: 2\n  label: 'true'\n"
+        '  center:\n    x: 0.0\n    y: 0.0\n    z: 0.0\n'
+        '  axis:\n    x: 0.0\n    y: 0.0\n    z: 0.0\n'
+        '  radius: 0.0\n  height: 0.0\n  confidence: 0.0\n  fit_quality: 0.0\n')
+
+
+def plain(value: object) -> object:
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    return [plain(v) for v in value] if isinstance(value, list) else value
+
+
+@pytest.mark.parametrize('typename, field', [
+    ('active_vision_msgs/msg/FoveatedDetectionArray', 'detections'),
+    ('active_vision_msgs/msg/CylinderArray', 'cylinders'),
+    ('active_vision_msgs/msg/TrackArray', 'tracks'),
+    ('visualization_msgs/msg/MarkerArray', 'markers'),
+])
+def test_every_array_topic_echoes_as_yaml_that_reads_back(typename: str, field: str) -> None:
+    cls = msgs.get_message(typename)
+    item_type = dict(msg_yaml.fields_of(typename))[field][1][0][1]
+    items = [msgs.get_message(item_type)() for _ in range(3)]
+    if field == 'tracks':
+        items[0].attended = True
+        items[1].covariance = np.arange(36, dtype=float)
+    if field == 'markers':
+        items[0].frame_locked = True
+    msg = cls(**{field: items})
+    text = msg_yaml.to_yaml(msg)
+    back = yaml.safe_load(text)
+    assert len(back[field]) == 3
+    assert back == plain(msg_yaml.to_ordereddict(msg))   # what was printed is what reads back
+    assert 'True' not in text and 'False' not in text   # YAML's true/false, as ros2 prints
+    if field == 'tracks':
+        assert back['tracks'][0]['attended'] is True
+        assert back['tracks'][1]['covariance'] == list(range(36))
+    if field == 'markers':
+        assert back['markers'][0]['frame_locked'] is True
+
+
+def test_echo_truncates_and_abbreviates_as_ros2() -> None:
+    joints = msgs.get_message('sensor_msgs/msg/JointState')(
+        name=['a' * 5, 'b'], position=np.arange(200, dtype=float))
+    back = yaml.safe_load(msg_yaml.to_yaml(joints, truncate_length=3))
+    assert back['name'] == ['aaa...', 'b']
+    assert back['position'] == [0.0, 1.0, 2.0, '...']
+    assert len(yaml.safe_load(msg_yaml.to_yaml(joints))['position']) == 129   # 128 + '...'
+    assert len(yaml.safe_load(msg_yaml.to_yaml(joints, truncate_length=None))['position']) == 200
+    info = yaml.safe_load(msg_yaml.to_yaml(msgs.get_message('sensor_msgs/msg/CameraInfo')(),
+                                           no_arr=True, no_str=True))
+    assert info['d'] == '<sequence type: double, length: 0>'
+    assert info['k'] == '<array type: double[9]>'
+    assert info['distortion_model'] == '<string length: <0>>'
+    assert msg_yaml.to_yaml(msgs.get_message('std_msgs/msg/Empty')()) == '{}\n'
+
+
+# --- topic pub / service call: YAML -> message ----------------------------------------------------
+
+def test_values_fill_a_message_and_refuse_what_cannot_go_in() -> None:
+    image = msgs.get_message('sensor_msgs/msg/Image')()
+    stamps = msg_yaml.set_fields(image, msg_yaml.parse_values(
+        '{header: auto, height: 2, encoding: rgb8, data: [1, 2, 3]}'))
+    assert (image.height, image.encoding, image.data.tolist()) == (2, 'rgb8', [1, 2, 3])
+    stamp = msgs.get_message('builtin_interfaces/msg/Time')(sec=7, nanosec=8)
+    for setter in stamps:        # 'auto': the header's stamp is set at each publish
+        setter(stamp)
+    assert (image.header.stamp.sec, image.header.stamp.nanosec) == (7, 8)
+    tracks = msgs.get_message('active_vision_msgs/msg/TrackArray')()
+    msg_yaml.set_fields(tracks, {'tracks': [{'id': 4, 'attended': True}, {'label': 'person'}]})
+    assert [(t.id, t.attended, t.label) for t in tracks.tracks] == [(4, True, ''),
+                                                                    (0, False, 'person')]
+    for text, said in (('{foo: 1}', "foo: sensor_msgs/msg/Image has no such field"),
+                       ('{height: -1}', 'out of the range of uint32'),
+                       ('{height: 1.5}', 'expected an integer'),
+                       ('{header: {stamp: {sec: x}}}', 'header.stamp.sec'),
+                       ('[1, 2]', 'needs to be a dictionary'),
+                       ('{a', 'not YAML')):
+        with pytest.raises(msg_yaml.FieldError, match=said):
+            msg_yaml.set_fields(msgs.get_message('sensor_msgs/msg/Image')(),
+                                msg_yaml.parse_values(text))
+
+
+def test_repr_is_rclpy_s() -> None:
+    """What `topic pub` and `service call` print ('publishing #1: ...', 'response:')."""
+    from vizzy_runtime.rclpy_compat.param_services import register_types
+    register_types()
+    request = msgs.get_message('rcl_interfaces/srv/GetParameters_Request')(names=['levels'])
+    assert repr(request) == "rcl_interfaces.srv.GetParameters_Request(names=['levels'])"
+    joints = msgs.get_message('sensor_msgs/msg/JointState')(position=[1.0, 2.0])
+    assert 'position=[1.0, 2.0]' in repr(joints)   # a sequence as a list, as rclpy's repr
+
+
+# --- one-line errors (issue 29 item 6) ------------------------------------------------------------
+
+def test_an_unknown_type_is_named_not_a_keyerror_repr() -> None:
+    said = one_line_error(vizzy('topic', 'echo', '/nope', 'foo/Bar', '--timeout', '0.5'))
+    assert said.startswith("vizzy: The passed message type 'foo/Bar' is invalid"), said
+    said = one_line_error(vizzy('topic', 'echo', '/nope', '--type', 'foo/Bar', '--timeout', '0.5'))
+    assert "'foo/Bar' is invalid" in said   # before: vizzy: 'foo/msg/Bar'
+    said = one_line_error(vizzy('topic', 'pub', '/x', 'std_msgs/msg/Strin', '{}'))
+    assert "'std_msgs/msg/Strin' is invalid" in said
+
+
+def test_hz_waits_no_longer_than_its_duration() -> None:
+    said = one_line_error(vizzy('topic', 'hz', '/nope_issue29', '--duration', '1.5'))
+    assert said == ('vizzy: no publisher on /nope_issue29 after 1.5 s (give its type to wait '
+                    'anyway)')   # before: after 10 s, whatever --duration
+
+
