@@ -134,6 +134,33 @@ def test_node_info_lists_what_ros2_node_info_lists(talker: Path) -> None:
     assert vizzy('node', 'info', '/nobody', code=1) == "vizzy: Unable to find node '/nobody'\n"
 
 
+def test_service_list_type_and_call(talker: Path) -> None:
+    def listed() -> str:
+        out = vizzy('service', 'list', '-t')
+        assert '/issue29/talker/get_parameters [rcl_interfaces/srv/GetParameters]' in out, out
+        return out
+    out = until(listed)
+    assert len(out.splitlines()) == 6, out       # the talker's six parameter services
+    assert vizzy('service', 'list', '-c') == '6\n'
+    assert vizzy('service', 'type', '/issue29/talker/list_parameters') == \
+        'rcl_interfaces/srv/ListParameters\n'
+    out = vizzy('service', 'call', '/issue29/talker/get_parameters',
+                'rcl_interfaces/srv/GetParameters', '{names: [levels]}', '--timeout', '30')
+    request, response = out.split('\n\nresponse:\n')
+    assert request.endswith("making request: rcl_interfaces.srv.GetParameters_Request("
+                            "names=['levels'])")
+    assert response.startswith('rcl_interfaces.srv.GetParameters_Response(values=['
+                               'rcl_interfaces.msg.ParameterValue(type=2, bool_value=False, '
+                               'integer_value=5,'), response
+    out = vizzy('service', 'call', '/issue29/talker/set_parameters',
+                'rcl_interfaces/srv/SetParameters', '--stdin', '--timeout', '30',
+                stdin='{parameters: [{name: levels, value: {type: 2, integer_value: 7}}]}')
+    assert 'SetParametersResult(successful=True' in out, out
+    assert vizzy('param', 'get', '/issue29/talker', 'levels') == 'Integer value is: 7\n'
+    said = vizzy('service', 'call', '/x', 'std_srvs/srv/Trigger', code=2)
+    assert "The passed service type 'std_srvs/srv/Trigger' is invalid" in said
+
+
 def test_topic_pub_reaches_a_subscriber_and_echo_prints_yaml(talker: Path) -> None:
     out = vizzy('topic', 'pub', '/heard', 'std_msgs/msg/String', 'data: issue 29', '-t', '2',
                 '-r', '20', '--max-wait-time-secs', '60')

@@ -1,19 +1,22 @@
 """Issue 29 items 1 and 6, without a graph: `vizzy topic echo`'s YAML is ros2's (valid YAML for
-message arrays, `false`, '...' after --truncate-length), `topic pub` values, and one-line errors
-for a mistyped type and a `topic hz` with nothing to hear."""
+message arrays, `false`, '...' after --truncate-length), `topic pub`/`service call` values,
+`vizzy interface list/show` as ros2 interface prints them, and one-line errors for a mistyped
+type and a `topic hz` with nothing to hear."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from vizzy_runtime import msg_yaml, msgs
+from vizzy_runtime import cli_interface, msg_yaml, msgs
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
+REAL_SHARE = Path(__file__).resolve().parents[3] / '.venv-ros' / 'share'   # ROS 2's .msg files
 
 
 def vizzy(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
@@ -139,6 +142,85 @@ def test_repr_is_rclpy_s() -> None:
     assert repr(request) == "rcl_interfaces.srv.GetParameters_Request(names=['levels'])"
     joints = msgs.get_message('sensor_msgs/msg/JointState')(position=[1.0, 2.0])
     assert 'position=[1.0, 2.0]' in repr(joints)   # a sequence as a list, as rclpy's repr
+
+
+# --- interface list / show ---------------------------------------------------------------------
+
+def test_interface_show_expands_nested_types_with_tabs() -> None:
+    proc = vizzy('interface', 'show', 'active_vision_msgs/msg/CylinderArray')
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    # the top level as its file has it, comments and blank lines included
+    assert lines[0] == '# Cylinders found in one point cloud, on /cylinders.'
+    assert lines[lines.index('std_msgs/Header header') + 1:][:4] == [
+        '\tbuiltin_interfaces/Time stamp', '\t\tint32 sec', '\t\tuint32 nanosec',
+        '\tstring frame_id']
+    nested = lines[lines.index('Cylinder[] cylinders') + 1:]
+    # a nested type without its comments, trailing ones cut, one tab per level
+    assert nested[:4] == ['\tuint32 id', '\tstring label', '\tgeometry_msgs/Point center',
+                          '\t\tfloat64 x']
+    assert nested[-1] == '\tfloat64 fit_quality'
+    assert not any(line.lstrip('\t').startswith('#') for line in nested)
+    bare = cli_interface.show_lines('active_vision_msgs/msg/CylinderArray', comments=False)
+    assert next(iter(bare)) == 'std_msgs/Header header'
+    every = list(cli_interface.show_lines('active_vision_msgs/msg/CylinderArray',
+                                          nested_comments=True))
+    assert '\tuint32 id            # index within this CylinderArray (not a persistent track ' \
+           'id)' in every
+
+
+def test_interface_show_of_standard_types_and_services() -> None:
+    lines = list(cli_interface.show_lines('geometry_msgs/msg/PoseStamped'))
+    assert lines[:5] == ['std_msgs/Header header', '\tbuiltin_interfaces/Time stamp',
+                         '\t\tint32 sec', '\t\tuint32 nanosec', '\tstring frame_id']
+    assert lines[5:8] == ['Pose pose', '\tPoint position', '\t\tfloat64 x']
+    assert lines[-1] == '\t\tfloat64 w 1'
+    srv = list(cli_interface.show_lines('rcl_interfaces/srv/ListParameters'))
+    assert srv[srv.index('---') + 1:] == ['ListParametersResult result', '\tstring[] names',
+                                          '\tstring[] prefixes']
+    assert cli_interface.split_name('std_msgs/String') == ('std_msgs', 'msg', 'String')
+    said = one_line_error(vizzy('interface', 'show', 'foo_msgs/msg/Nope'))
+    assert said == ("vizzy: Could not find the interface 'foo_msgs/msg/Nope' (`vizzy interface "
+                    'list` lists the known ones)')
+
+
+def test_generated_definitions_match_ros2_s_files() -> None:
+    """A standard type's text comes from the typestore: the same fields and constants, with the
+    same types, as the .msg files ROS 2 ships (where .venv-ros has them)."""
+    if not REAL_SHARE.is_dir():
+        pytest.skip('no .venv-ros (make setup-ros) with ROS 2 .msg files')
+
+    def declarations(text: str, pkg: str) -> set[tuple[str, ...]]:
+        out = set()
+        for line in text.splitlines():
+            code = line.split('#', 1)[0].strip()
+            if not code:
+                continue
+            kind, rest = code.split(None, 1)
+            if kind.split('[')[0].startswith(pkg + '/'):
+                kind = kind[len(pkg) + 1:]       # same-package types: bare or qualified
+            out.add((kind, rest.replace(' ', '')) if '=' in rest else (kind, rest.split()[0]))
+        return out
+
+    compared = 0
+    for path in sorted(REAL_SHARE.glob('*/msg/*.msg')):
+        name = f'{path.parts[-3]}/msg/{path.stem}'
+        if name in msgs.registry().store.fielddefs:
+            compared += 1
+            assert declarations(cli_interface.generated_text(name), path.parts[-3]) == \
+                declarations(path.read_text(), path.parts[-3]), name
+    assert compared > 100
+
+
+def test_interface_list_sections() -> None:
+    proc = vizzy('interface', 'list')
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0] == 'Messages:' and 'Services:' in lines and lines[-1] == 'Actions:'
+    assert '    active_vision_msgs/msg/CylinderArray' in lines
+    assert '    rcl_interfaces/srv/GetParameters' in lines
+    only = vizzy('interface', 'list', '-s').stdout.splitlines()
+    assert only[0] == 'Services:' and 'Messages:' not in only
 
 
 # --- one-line errors (issue 29 item 6) ------------------------------------------------------------

@@ -7,12 +7,14 @@
     vizzy topic list [-t] | echo <topic> [type] [--once] | hz <topic> [--duration S]
               | info <topic> [-v] | pub <topic> <type> '<yaml>' [-r HZ] [-1 | -t N] [-w N]
     vizzy node list | info <node>
+    vizzy service list [-t] | type <service> | call <service> <type> '<yaml>'
+    vizzy interface list [-m] [-s] | show <pkg/msg/Type> | packages | package <pkg>
     vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
     vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE]
               | info <bag> [--check] | reindex <bag>
 
 Each verb has ros2's flags and prints what ros2 prints (cli_topic.py, cli_node.py,
-param_cli.py).
+cli_service.py, cli_interface.py, param_cli.py).
 
 Everything speaks ROS 2's DDS wire protocol on loopback, so real ROS 2 tools on this host see
 the same topics. Errors are one line naming what and where; the exit code is non-zero.
@@ -242,9 +244,11 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument('--duration', type=positive_seconds, help='stop after this many seconds')
     view.set_defaults(func=cmd_view)
 
-    from . import cli_node, cli_topic, param_cli
+    from . import cli_interface, cli_node, cli_service, cli_topic, param_cli
     cli_topic.add_parser(sub)
     cli_node.add_parser(sub)
+    cli_service.add_parser(sub)
+    cli_interface.add_parser(sub)
     param_cli.add_parser(sub)
 
     bag = sub.add_parser('bag', help='rosbag2 (MCAP) bags').add_subparsers(
