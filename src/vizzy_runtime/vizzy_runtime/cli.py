@@ -10,7 +10,8 @@
     vizzy service list [-t] | type <service> | call <service> <type> '<yaml>'
     vizzy interface list [-m] [-s] | show <pkg/msg/Type> | packages | package <pkg>
     vizzy param list <node> | get <node> <name> | set <node> <name> <value> | describe <node> <name>
-    vizzy bag record [-o DIR] [-a | topics...] [-d S] | play <bag> [-r RATE]
+    vizzy bag record [-o DIR] [-a | topics...] [-d S]
+              | play <bag> [-r RATE] [--clock [HZ]] [--remap FROM:=TO ...] [--start-offset S]
               | info <bag> [--check] | reindex <bag>
 
 Each verb has ros2's flags and prints what ros2 prints (cli_topic.py, cli_node.py,
@@ -160,9 +161,12 @@ def cmd_bag_record(ns: argparse.Namespace) -> int:
 
 def cmd_bag_play(ns: argparse.Namespace) -> int:
     from .bag import Player
+    from .bag.play import parse_remaps
     from .bag.reader import lost_messages
     player = Player(ns.bag, rate=ns.rate, topics=ns.topics, loop=ns.loop,
-                    wait_for_subscribers=ns.wait_for_subscribers)
+                    wait_for_subscribers=ns.wait_for_subscribers,
+                    remap=parse_remaps(ns.remap or ()), start_offset=ns.start_offset,
+                    clock_hz=ns.clock, progress_hz=ns.progress_bar_update_rate)
     _print_counts(player.run())
     skipped = player.corrupt_chunks  # each was also named in a warning when it was skipped
     if skipped:
@@ -269,6 +273,19 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument('-l', '--loop', action='store_true')
     play.add_argument('--wait-for-subscribers', type=nonnegative_seconds, default=0.0,
                       metavar='SECONDS')
+    play.add_argument('--clock', type=positive_number, nargs='?', const=40.0, default=0.0,
+                      metavar='HZ',
+                      help='publish /clock at this frequency (default 40 Hz when given without '
+                           "one) from the bag's time, as a ROS time source for nodes with "
+                           "use_sim_time; the bag's own /clock is then not played")
+    play.add_argument('--remap', '-m', nargs='+', metavar='FROM:=TO',
+                      help='topics to remap, e.g. /vizzy/left/image_raw:=/replay/left')
+    play.add_argument('--start-offset', type=nonnegative_seconds, default=0.0, metavar='S',
+                      help='start this many seconds into the bag')
+    play.add_argument('--progress-bar-update-rate', type=float, default=3.0, metavar='HZ',
+                      help='progress line on stderr ([bag time] Duration played/total [R]unning '
+                           'or [D]elayed) this many times a second (default 3; 0: off; '
+                           'negative: at every message)')
     play.set_defaults(func=cmd_bag_play)
     info = bag.add_parser('info')
     info.add_argument('bag')
