@@ -208,7 +208,15 @@ def make_detector(spec: str, args: argparse.Namespace) -> Detector:
     module, _, name = spec.partition(':')
     if not name:
         raise ValueError(f"--detector must be 'hog' or 'module:factory', got {spec!r}")
-    detector = getattr(importlib.import_module(module), name)()
+    try:
+        factory = getattr(importlib.import_module(module), name)
+    except ImportError as exc:     # a typo in --detector: one line, not a traceback
+        raise ValueError(f'--detector {spec}: cannot import {module!r} ({exc})') from None
+    except AttributeError:
+        raise ValueError(f'--detector {spec}: module {module!r} has no {name!r}') from None
+    if not callable(factory):
+        raise ValueError(f'--detector {spec}: {name!r} is not callable')
+    detector = factory()
     if not isinstance(detector, Detector):
         raise ValueError(f'{spec} did not return a detector (geometry, box_shrink, detect)')
     return detector

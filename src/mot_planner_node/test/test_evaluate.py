@@ -174,6 +174,19 @@ def test_missing_parts_and_cli_errors(tmp_path: Path, capsys) -> None:
     assert evaluate.main([str(seq.parent / 'SEQ-01'), '--quiet', '--s-max', '2']) == 2
 
 
+@pytest.mark.parametrize('spec, said', [
+    ('foo.bar:baz', "--detector foo.bar:baz: cannot import 'foo.bar' (No module named 'foo')"),
+    ('json:no_such_factory', "--detector json:no_such_factory: module 'json' has no "
+                             "'no_such_factory'"),
+    ('json:__name__', "--detector json:__name__: '__name__' is not callable"),
+])
+def test_a_mistyped_detector_is_one_line(tmp_path: Path, capsys, spec: str, said: str) -> None:
+    """Issue 29 item 6: a typo in --detector printed an ImportError traceback."""
+    seq = make_sequence(tmp_path, static_rows())
+    assert evaluate.main([str(seq), '--quiet', '--detector', spec]) == 2
+    assert capsys.readouterr().err == f'evaluate: error: {said}\n'
+
+
 def test_mot15_rows_keep_every_box(tmp_path: Path) -> None:
     """MOT15's gt.txt puts world coordinates (or -1) where MOT16/17 have class and visibility:
     ten values per row. Read as class/visibility they would drop every box."""

@@ -1,7 +1,7 @@
 """Issue 29 items 1 and 6, without a graph: `vizzy topic echo`'s YAML is ros2's (valid YAML for
 message arrays, `false`, '...' after --truncate-length), `topic pub`/`service call` values,
-`vizzy interface list/show` as ros2 interface prints them, and one-line errors for a mistyped
-type and a `topic hz` with nothing to hear."""
+`vizzy interface list/show` as ros2 interface prints them, and one-line errors for mistyped
+input (a type, a port, a --ros-args parameter, an evaluate --detector, a bag path)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 import yaml
 
-from vizzy_runtime import cli_interface, msg_yaml, msgs
+from vizzy_runtime import cli, cli_interface, msg_yaml, msgs
+from vizzy_runtime.rclpy_compat import arguments
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
 REAL_SHARE = Path(__file__).resolve().parents[3] / '.venv-ros' / 'share'   # ROS 2's .msg files
@@ -240,3 +241,32 @@ def test_hz_waits_no_longer_than_its_duration() -> None:
                     'anyway)')   # before: after 10 s, whatever --duration
 
 
+@pytest.mark.parametrize('argv', [['view', '--port', '70000'], ['view', '--port', '-1'],
+                                  ['launch', '--view-port', '70000']])
+def test_ports_out_of_range_are_refused_by_the_parser(argv: list[str]) -> None:
+    said = one_line_error(vizzy(*argv))
+    assert "'70000': a port is 0..65535" in said or "'-1': a port is 0..65535" in said, said
+
+
+def test_view_says_when_it_serves_loopback_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv('VIZZY_DDS_LAN', raising=False)
+    monkeypatch.setenv('VIZZY_RUNTIME', 'bundled')
+    note = cli.loopback_note('0.0.0.0')
+    assert note is not None and 'serves on 127.0.0.1 only' in note and 'VIZZY_DDS_LAN=1' in note
+    assert cli.loopback_note(None) is None and cli.loopback_note('127.0.0.1') is None
+    monkeypatch.setenv('VIZZY_DDS_LAN', '1')
+    assert cli.loopback_note('0.0.0.0') is None       # the opt-in: it does bind every interface
+
+
+def test_a_parameter_without_a_value_says_name_value() -> None:
+    with pytest.raises(arguments.RosArgumentError) as err:
+        arguments.parse(['--ros-args', '-p', 'k_max'])
+    assert str(err.value) == "-p 'k_max': expected 'name:=value' (e.g. k_max:=1)"
+
+
+def test_demo_summary_of_a_mistyped_bag_is_one_line(tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.demo_summary',
+                           str(tmp_path / 'typo'), '-o', str(tmp_path / 'page.png')],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert one_line_error(proc) == f'demo_summary: {tmp_path / "typo"}: no such bag directory'

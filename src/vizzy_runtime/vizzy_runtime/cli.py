@@ -33,6 +33,7 @@ from typing import Any, NoReturn
 from .cli_types import (
     die,
     nonnegative_seconds,
+    port_number,
     positive_number,
     positive_seconds,
 )
@@ -98,8 +99,21 @@ def cmd_launch(ns: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def loopback_note(host: str | None) -> str | None:
+    """One line when --host asks for every interface but this process binds loopback only
+    (loopback.py's bind shim turns a wildcard bind into 127.0.0.1), else None."""
+    from . import loopback
+    if host not in ('0.0.0.0', '::', '') or not loopback.wanted():
+        return None
+    return (f'vizzy: view: --host {host or "(any)"} serves on {loopback.LOOPBACK_V4} only: '
+            'vizzy keeps its sockets on loopback; set VIZZY_DDS_LAN=1 to serve every interface')
+
+
 def cmd_view(ns: argparse.Namespace) -> int:
     from .live_view import LiveView
+    note = loopback_note(ns.host)
+    if note:
+        print(note, file=sys.stderr, flush=True)
     view = LiveView(host=ns.host, port=ns.port)
     try:
         view.start()
@@ -232,7 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     la.add_argument('--grace', type=nonnegative_seconds, default=5.0, metavar='S',
                     help='on stop, seconds from SIGINT to SIGTERM for nodes still running '
                          '(default 5; like ros2 launch sigterm_timeout)')
-    la.add_argument('--view-port', type=int, default=DEFAULT_VIEW_PORT, metavar='PORT',
+    la.add_argument('--view-port', type=port_number, default=DEFAULT_VIEW_PORT, metavar='PORT',
                     help='serve the graph to Foxglove on ws://127.0.0.1:PORT (default '
                          f'{DEFAULT_VIEW_PORT})')
     la.add_argument('--no-view', action='store_true', help='no Foxglove live view')
@@ -240,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     view = sub.add_parser('view',
                           help='serve the running graph (or a bag being played) to Foxglove')
-    view.add_argument('--port', type=int, default=DEFAULT_VIEW_PORT,
+    view.add_argument('--port', type=port_number, default=DEFAULT_VIEW_PORT,
                       help=f'WebSocket port (default {DEFAULT_VIEW_PORT}; 0: any free one)')
     view.add_argument('--host', default=None,
                       help='address to listen on (default 127.0.0.1; every interface with '

@@ -1482,7 +1482,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('bag', help='a bag directory recorded by `make demo`')
     parser.add_argument('-o', '--output', default='demo_output/summary.png', help='PNG to write')
     ns = parser.parse_args(argv)
-    result = summarize_bag(ns.bag, ns.output)
+    from .bag import BagError
+    try:
+        result = summarize_bag(ns.bag, ns.output)
+    except (BagError, OSError) as exc:   # a mistyped bag path: one line, exit 2
+        print(f'demo_summary: {exc}', file=sys.stderr)
+        return 2
     print(f'summary page: {result["path"]}')
     for key, panel in result['panels'].items():
         print(f'  {key:10} {"data" if panel.has_data else "EMPTY":5}  {panel.note}')

@@ -123,7 +123,10 @@ def _flatten(tree: dict, prefix: str = '') -> list[tuple[str, Any]]:
 
 def _split_assignment(arg: str, flag: str) -> tuple[str | None, str, str]:
     if ':=' not in arg:
-        raise RosArgumentError(f"{flag} {arg!r}: expected 'from:=to'")
+        # rcl's forms: -r from:=to, -p name:=value (a parameter needs its value)
+        form = 'name:=value' if flag in ('-p', '--param') else 'from:=to'
+        raise RosArgumentError(f"{flag} {arg!r}: expected '{form}'"
+                               + (f' (e.g. {arg}:=1)' if form == 'name:=value' and arg else ''))
     lhs, rhs = arg.split(':=', 1)
     node = None
     if ':' in lhs:
