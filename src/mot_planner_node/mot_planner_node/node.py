@@ -145,6 +145,7 @@ UNUSABLE_FRAME = 'unusable frame'
 SMALLER_THAN_WINDOW = 'smaller than the detector window'
 UNUSABLE_K = 'unusable K'
 RATE_CAP = 'max_rate_hz'           # held, not refused: frames beyond the rate cap
+MIN_RATE_HZ = 0.01                 # a positive max_rate_hz below this stops tracking
 # /mot/tracks silent this long (node clock) while images arrive: a diagnostics WARN
 OUTPUT_STALL_S = 3.0
 NOMINAL_FPS = 30.0
@@ -168,7 +169,7 @@ PARAMETERS: tuple[Param, ...] = (
           '[0, 10]'),
     Param('max_rate_hz', 0.0, 'Most frames tracked per second, counted in the images\' stamps '
           '(the others are dropped before any work; 0: every frame), in [0, 1000].',
-          '[0, 1000]'),
+          '[0, 1000]', constraints=f'0 or at least {MIN_RATE_HZ} Hz'),
     Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in [0.1, 1000].',
           '[0.1, 1000]'),
     Param('horizon', DEPLOYED['horizon'], 'Planning horizon T in frames, the depth of the MCTS '
@@ -255,6 +256,9 @@ def check_parameter(name: str, value: Any) -> str | None:
               and 0.0 < values[0] < values[1] <= 10.0)
         return None if ok else f'person_height_m must be [min, max] with 0 < min < max <= 10, ' \
                                f'got {values!r}'
+    if name == 'max_rate_hz' and 0.0 < value < MIN_RATE_HZ:
+        return (f'max_rate_hz must be 0 (every frame) or at least {MIN_RATE_HZ} Hz, got {value:g} '
+                '(a frame every few hours is tracking switched off)')
     if name == 'world_frame' and not value.strip('/'):
         return f'world_frame must be a frame id, got {value!r}'
     return None

@@ -29,6 +29,9 @@ def test_parameter_checks() -> None:
         assert refused('person_height_m', [2.0, 1.0]) and refused('person_height_m', [0.0, 2.0])
         assert refused('person_height_m', [1.0, 2.0, 3.0]) and refused('world_frame', '')
         assert refused('k_max', 3.0) and refused('publish_gaze', 1)      # the declared types
+        # issue 28 item 4: a positive cap so low it switches tracking off, without a warning
+        assert refused('max_rate_hz', 1e-9) and refused('max_rate_hz', 0.009)
+        assert refused('max_rate_hz', 0.0) is None and refused('max_rate_hz', 0.01) is None
 
 
 def test_images_are_checked() -> None:
