@@ -328,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 0
     except (_bag_error(), ValueError, TimeoutError, FileNotFoundError, KeyError) as err:
-        # a KeyError's str() is its repr ("'foo/msg/Bar'"): print its message instead
+        # a KeyError's str() is its repr (the name in quotes): print its message instead
         return die(str(err.args[0]) if isinstance(err, KeyError) and err.args else str(err))
 
 
