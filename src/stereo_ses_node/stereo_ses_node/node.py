@@ -223,6 +223,11 @@ PARAMETERS: tuple[Param, ...] = (
           'User GMM: 3 M diagonal variances (xx yy zz per component), > 0.',
           constraints='finite, > 0, 3 per bias_weights component'),
     Param('seed', 0, 'Seed of the cell sampling, in [0, 2^31).', f'[0, {2 ** 31})'),
+    Param('prior_distance_m', 10.0, 'Prior mean distance [m] of a never-observed cell (section '
+          '3.3.3: "large mean and covariance"), in [0.05, 100]. With the reward -||x|| it is how '
+          'near unobserved space is assumed to be; a change resets the memory.', '[0.05, 100]'),
+    Param('prior_sigma_m', 10.0, 'Prior standard deviation [m] of a never-observed cell '
+          '(isotropic), in [0.001, 100]; a change resets the memory.', '[0.001, 100]'),
     Param('acquisition', 'ucb', "Next-best-view rule: 'ucb', 'pi' or 'ei' (Eqs. 3.41-3.43).",
           choices=ACQUISITIONS),
     Param('ucb_alpha', 100.0, 'UCB exploration weight alpha (Eq. 3.41), >= 0; 0 is greedy, '
@@ -259,12 +264,13 @@ PARAMETERS: tuple[Param, ...] = (
           constraints='[min, max] with 0.15 <= min < max <= 10'),
     Param('cells_rate_hz', 1.0, f'Rate of {CELLS_TOPIC} [Hz], in [0.01, 30].', '[0.01, 30]'),
     Param('publish_unobserved_cells', False, f'Also publish never-observed cells on '
-          f'{CELLS_TOPIC} (at their prior mean, 10 m away).'),
+          f'{CELLS_TOPIC} (at their prior mean, prior_distance_m away).'),
 )
 # parameters whose change rebuilds the stereo pipeline / the ego-sphere
 PIPELINE_PARAMETERS = ('sensor', 'n_rf', 'min_disparity', 'num_disparities', 'ut_alpha', 'ut_beta',
                        'ut_kappa')
-SES_PARAMETERS = ('n_cells', 'bias', 'bias_weights', 'bias_means', 'bias_variances', 'seed')
+SES_PARAMETERS = ('n_cells', 'bias', 'bias_weights', 'bias_means', 'bias_variances', 'seed',
+                  'prior_distance_m', 'prior_sigma_m')
 _LISTS = ('bias_weights', 'bias_means', 'bias_variances', 'fixation_distance_m',
           'elevation_limits_deg', 'depth_range_m')
 
@@ -383,6 +389,8 @@ class StereoSesNode(Node):
         self._ses_dirty = False
         self._refused: set[int] = set()   # cells not to choose: refused, or fixating gave nothing
         self._fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
+        self._own_saccade = False         # the saccade under way is this node's
+        self._served = False              # the gaze controller served the last command
         self._warn_throttled = ThrottledWarnings(self, WARN_PERIOD_S)  # what is no refusal
         # counters (read by tests and the periodic log)
         self.pairs_received = 0
@@ -452,7 +460,9 @@ class StereoSesNode(Node):
     def _new_ses(self) -> SensoryEgoSphere:
         p = self._p
         bias: GMM | str = user_gmm(p) if p['bias'] == 'user' else p['bias']
-        return SensoryEgoSphere(int(p['n_cells']), bias, seed=int(p['seed']))
+        return SensoryEgoSphere(int(p['n_cells']), bias, seed=int(p['seed']),
+                                init_distance=float(p['prior_distance_m']),
+                                init_sigma=float(p['prior_sigma_m']))
 
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
         with self._lock:
@@ -482,11 +492,20 @@ class StereoSesNode(Node):
             saccade = bool(msg.in_saccade)
             if saccade:
                 self._awaiting_saccade_until = -math.inf
+                if msg.active_source == SOURCE:
+                    self._own_saccade = True         # our command moves the eyes
+                    self._served = True
             if self._in_saccade and not saccade:
-                self._frames_since_settle = 0        # a saccade just settled
                 # pairs stamped before this were taken before or during the movement
                 # (blurred; saccadic suppression)
                 self._settled_at = stamp_seconds(msg.header.stamp)
+                if self._own_saccade:
+                    # our own saccade settled: count the frames of its fixation. Other sources'
+                    # saccades (the object map's looks every ~1.1 s, foveation's) do not restart
+                    # the count: their frames are observations too, and restarting on them left
+                    # this node one decision in 30 s of the deployed graph (issue 26)
+                    self._own_saccade = False
+                    self._frames_since_settle = 0
             self._in_saccade = saccade
         self.input_health.accept(self._gaze_state_topic)
         if msg.status in (GazeState.STATUS_REJECTED_NAN, GazeState.STATUS_REJECTED_UNKNOWN_FRAME,
@@ -726,7 +745,7 @@ class StereoSesNode(Node):
                     and self._frames_since_settle >= self._p['frames_per_fixation']):
                 cell, seen = fixated
                 self._fixated = None
-                if self._ses.n_obs[cell] == seen:
+                if self._served and self._ses.n_obs[cell] == seen:
                     # the fixation gave its cell no observation (the eyes sit in front of ego,
                     # so the fixated point may fall in a neighbouring cell): without this, an
                     # unobserved cell keeps its prior and would be chosen for ever
@@ -788,10 +807,12 @@ class StereoSesNode(Node):
             self._awaiting_saccade_until = now + SACCADE_START_TIMEOUT_S
             self._frames_since_settle = 0
             self._fixated = (decision.cell, int(ses.n_obs[decision.cell]))
+            self._served = False          # a pre-empted command fixated nothing: no refusal
         self.gaze_commands += 1
         self.last_decision = decision
         self.get_logger().debug(f'fixation: cell {decision.cell} at {np.round(point, 3)} '
-                                f'(score {decision.score:.4g})')
+                                f'(score {decision.score:.4g}, {int(ses.n_obs[decision.cell])} '
+                                f'observations)')
 
     def _on_cells_timer(self) -> None:
         header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._p['ego_frame'])

@@ -269,9 +269,22 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     assert cmd.header.frame_id == 'ego'
     p = np.array([cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z])
     assert 0.3 - 1e-6 <= np.linalg.norm(p) <= 8.0 + 1e-6 and p[2] >= -0.7
-    # in a saccade nothing is fused and no command is sent
+    # another source's saccade (the object map's looks) neither restarts the frames counted
+    # towards the next decision nor, its frames giving the chosen cell nothing, refuses the cell
+    # (issue 26: restarting on every look left the node one decision in 30 s)
+    with ses._lock:
+        ses._frames_since_settle = counted = 5
     cell = ses.last_decision.cell
-    rig.state_pub.publish(GazeState(in_saccade=True))
+    rig.state_pub.publish(GazeState(in_saccade=True, active_source='object_map'))
+    assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
+    rig.state_pub.publish(GazeState(in_saccade=False, active_source='object_map'))
+    assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
+    assert ses._frames_since_settle == counted
+    assert _feed(rig, ses, executor)
+    assert cell not in ses._refused and ses._ses.n_obs[cell] == 0
+    # in our own saccade nothing is fused and no command is sent
+    cell = ses.last_decision.cell
+    rig.state_pub.publish(GazeState(in_saccade=True, active_source='stereo_ses'))
     assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
     fused, obs, sent = ses.frames_fused, ses._ses.n_obs.copy(), ses.gaze_commands
     for _ in range(2):
@@ -279,8 +292,9 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     assert ses.frames_in_saccade == 2 and ses.frames_fused == fused
     assert np.array_equal(ses._ses.n_obs, obs) and ses.gaze_commands == sent
     # the saccade settles: fusion and decisions resume
-    rig.state_pub.publish(GazeState(in_saccade=False))
+    rig.state_pub.publish(GazeState(in_saccade=False, active_source='stereo_ses'))
     assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
+    assert ses._frames_since_settle == 0
     assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
     # UCB alpha 100 explored an unobserved (prior) cell; the eyes never moved (no controller),
     # so the frame after the "saccade" gave it no observation: it is excluded, and the next

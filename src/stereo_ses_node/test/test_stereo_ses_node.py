@@ -4,6 +4,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from stereo_ses_node import node
 from stereo_ses_node.core.ses import SensoryEgoSphere
@@ -102,3 +103,24 @@ def test_node_declares_its_parameters_and_refuses_bad_values() -> None:
     with node_under_test(node.StereoSesNode) as ros_node:
         check_node_parameters(ros_node, node.PARAMETERS, 'acquisition', 'greedy')
         check_node_parameters(ros_node, node.PARAMETERS, 'max_rate_hz', 0.0)
+
+
+def test_prior_of_unobserved_cells_is_a_parameter() -> None:
+    """prior_distance_m / prior_sigma_m set the never-observed cells' Gaussian, and so where UCB
+    fixates one (issue 26: at the 10 m prior, clamped to 8 m, the left eye's axis passes 17-18
+    deg from a can 0.53 m away in the same ego direction; the bench asks for 5 deg)."""
+    from vizzy_runtime.ros import Parameter
+
+    with parameter_refusals(node.PARAMETERS, node.check_parameter, node.check_all) as refused:
+        assert refused('prior_distance_m', 0.6) is None and refused('prior_sigma_m', 0.1) is None
+        assert refused('prior_distance_m', 0.0) and refused('prior_sigma_m', -1.0)
+        assert refused('prior_distance_m', math.nan)
+    assert {'prior_distance_m', 'prior_sigma_m'} <= set(node.SES_PARAMETERS)
+    with node_under_test(lambda: node.StereoSesNode(parameter_overrides=[
+            Parameter('n_cells', value=500), Parameter('prior_distance_m', value=0.6),
+            Parameter('prior_sigma_m', value=2.0)])) as ros_node:
+        ses = ros_node._ses
+        assert np.allclose(np.linalg.norm(ses.mean, axis=1), 0.6)
+        assert np.allclose(ses.cov, 4.0 * np.eye(3))
+        decision = node.choose_fixation(ses.mean, ses.cov, 'ucb', 100.0)
+        assert np.linalg.norm(decision.fixation) == pytest.approx(0.6)
