@@ -1,4 +1,5 @@
-"""Minimal Foxglove WebSocket clients (protocol foxglove.sdk.v1, as the Foxglove app speaks it):
+"""Minimal Foxglove WebSocket clients (protocol foxglove.sdk.v1, as the Foxglove app speaks it, or
+its old name foxglove.websocket.v1, as Foxglove Studio 1.x and older Lichtblick offer it):
 collect() reads the advertised channels, subscribes to some topics and keeps the first message of
 each; RawClient is a blocking socket with just enough WebSocket to subscribe, which reads only when
 told to (a client that stops reading: the live view's memory bound, bench/live_view_memory.py)."""
@@ -18,6 +19,7 @@ from typing import Any
 import websockets
 
 SUBPROTOCOL = 'foxglove.sdk.v1'
+OLD_SUBPROTOCOL = 'foxglove.websocket.v1'   # the same protocol, the name older viewers offer
 MESSAGE_DATA = 0x01   # binary opcode: subscription id (u32 LE), log time (u64 LE), payload
 
 
@@ -27,13 +29,18 @@ class Session:
     # topic -> advertised channel
     channels: dict[str, dict[str, Any]] = field(default_factory=dict)
     first: dict[str, bytes] = field(default_factory=dict)              # topic -> first payload
+    subprotocol: str | None = None                                     # what the server chose
 
 
-async def _collect(url: str, topics: set[str], timeout: float) -> Session:
+async def _collect(url: str, topics: set[str], timeout: float,
+                   subprotocols: list[str]) -> Session:
     session = Session()
     subscribed: dict[int, str] = {}
     deadline = time.monotonic() + timeout
-    async with websockets.connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
+    # websockets fails the handshake if the server names a protocol the client did not offer
+    async with websockets.connect(url, subprotocols=subprotocols,  # type: ignore[arg-type]
+                                  max_size=None) as ws:
+        session.subprotocol = ws.subprotocol
         while time.monotonic() < deadline and not topics <= set(session.first):
             try:
                 frame = await asyncio.wait_for(ws.recv(),
@@ -62,10 +69,12 @@ async def _collect(url: str, topics: set[str], timeout: float) -> Session:
     return session
 
 
-def collect(url: str, topics: set[str], timeout: float = 60.0) -> Session:
-    """Connect, subscribe to `topics` as their channels are advertised, return when a message of
-    each has arrived or after timeout (the caller checks what is missing)."""
-    return asyncio.run(_collect(url, topics, timeout))
+def collect(url: str, topics: set[str], timeout: float = 60.0,
+            subprotocols: tuple[str, ...] = (SUBPROTOCOL,)) -> Session:
+    """Connect offering `subprotocols`, subscribe to `topics` as their channels are advertised,
+    return when a message of each has arrived or after timeout (the caller checks what is
+    missing)."""
+    return asyncio.run(_collect(url, topics, timeout, list(subprotocols)))
 
 
 class RawClient:
@@ -73,7 +82,8 @@ class RawClient:
     the server's writes stall once the socket's receive buffer (rcvbuf, set before connecting, so
     the window the server sees is small from the start) is full."""
 
-    def __init__(self, port: int, rcvbuf: int | None = None, host: str = '127.0.0.1') -> None:
+    def __init__(self, port: int, rcvbuf: int | None = None, host: str = '127.0.0.1',
+                 subprotocols: tuple[str, ...] = (SUBPROTOCOL,)) -> None:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         if rcvbuf:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
@@ -81,7 +91,8 @@ class RawClient:
         key = base64.b64encode(os.urandom(16)).decode()
         self.sock.sendall((f'GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n'
                            f'Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n'
-                           f'Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: {SUBPROTOCOL}'
+                           f'Sec-WebSocket-Version: 13\r\n'
+                           f'Sec-WebSocket-Protocol: {", ".join(subprotocols)}'
                            '\r\n\r\n').encode())
         self.buf = b''
         self.channels: dict[str, dict[str, Any]] = {}   # topic -> advertised channel
@@ -91,6 +102,10 @@ class RawClient:
         head, self.buf = self.buf.split(b'\r\n\r\n', 1)
         if b' 101 ' not in head.split(b'\r\n')[0]:
             raise ConnectionError(f'handshake refused: {head[:200]!r}')
+        # the protocol the server chose (a real client fails one it did not offer)
+        self.subprotocol = next((line.split(b':', 1)[1].strip().decode()
+                                 for line in head.split(b'\r\n')
+                                 if line.lower().startswith(b'sec-websocket-protocol:')), None)
 
     def _recv(self) -> bytes:
         chunk = self.sock.recv(1 << 20)

@@ -6,13 +6,19 @@ foxglove_layout.py writes and names only topics the graph serves.
 Its memory (issue 28 item 1): a client that stops reading is held to CLIENT_BACKLOG messages, the
 newest, instead of 1024 (a VGA image each: 0.9 GB per client); of the frames a reader has queued
 only the newest is passed on; a reading client stays connected while many topics appear at once
-(each is an advertisement, and the control outbox is as small as the data one)."""
+(each is an advertisement, and the control outbox is as small as the data one).
+
+Older viewers (issue 29 item 7): a client offering only the subprotocol's old name
+foxglove.websocket.v1 (Foxglove Studio 1.x, Lichtblick before December 2025) is served through the
+view's relay (ws_relay.py) instead of HTTP 400; a plain HTTP request gets a clear 426."""
 
 from __future__ import annotations
 
 import json
+import socket
 import struct
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -24,9 +30,10 @@ from vizzy_runtime.foxglove_layout import LAYOUT_FILE, layout_json, topics_named
 from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph
 from vizzy_runtime.live_view import CLIENT_BACKLOG, LiveView, to_send
 from vizzy_runtime.testing import STOP_GRACE_S, wait_until
+from vizzy_runtime.ws_relay import RELAY_CHUNK, UPSTREAM_RCVBUF, rewrite_request, rewrite_response
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from foxglove_client import RawClient, collect  # noqa: E402
+from foxglove_client import OLD_SUBPROTOCOL, SUBPROTOCOL, RawClient, collect  # noqa: E402
 
 DECODED = {
     '/vizzy/left/image_raw': 'sensor_msgs/msg/Image',
@@ -113,7 +120,10 @@ def test_a_client_that_stops_reading_is_held_to_the_newest_backlog() -> None:
         view.stop()
         dds.delete(writer)
     held = len(got) * len(base)
-    bound = (CLIENT_BACKLOG + 1) * len(base) + _tcp_send_buffer_max() + 2 * STALLED_RCVBUF
+    # beyond the SDK's outbox: the kernel's buffers between the SDK and the client, which through
+    # the view's relay are two send buffers, the relay's capped receive buffer and one chunk
+    kernel = 2 * _tcp_send_buffer_max() + 2 * UPSTREAM_RCVBUF + RELAY_CHUNK + 2 * STALLED_RCVBUF
+    bound = (CLIENT_BACKLOG + 1) * len(base) + kernel
     assert held <= bound, (f'{len(got)} of {stalled} images ({held / 1e6:.0f} MB) were held for a '
                            f'client that stopped reading; bound {bound / 1e6:.0f} MB')
     # the newest win: the last CLIENT_BACKLOG - 1 images before the marker all arrive, in order
@@ -146,6 +156,85 @@ def test_a_reading_client_stays_connected_while_many_topics_appear(
     finally:
         client.close()
         view.stop()
+
+
+def test_the_relay_renames_only_a_request_offering_just_the_old_name() -> None:
+    head = (b'GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\n'
+            b'sec-websocket-protocol: foxglove.websocket.v1\r\nX-Other: 1')
+    new, renamed = rewrite_request(head)
+    assert renamed and new.endswith(b'\r\nSec-WebSocket-Protocol: foxglove.sdk.v1')
+    assert b'foxglove.websocket.v1' not in new and b'X-Other: 1' in new
+    both = head.replace(b'websocket.v1', b'websocket.v1, foxglove.sdk.v1')
+    assert rewrite_request(both) == (both, False)                  # the SDK picks foxglove.sdk.v1
+    other = head.replace(b'foxglove.websocket.v1', b'chat')
+    assert rewrite_request(other) == (other, False)                # the SDK's own answer (400)
+    answer = b'HTTP/1.1 101 Switching Protocols\r\nsec-websocket-protocol: foxglove.sdk.v1'
+    assert rewrite_response(answer).endswith(b'\r\nsec-websocket-protocol: foxglove.websocket.v1')
+
+
+@pytest.fixture
+def string_view() -> Iterator[tuple[LiveView, str]]:
+    """A live view with one String topic published through DDS (a latched sample)."""
+    topic = '/live_view_test/old_viewer'
+    writer = dds.RawWriter(topic, 'std_msgs/msg/String',
+                           dds.QoS(reliable=True, transient_local=True, depth=1))
+    msg = msgs.get_message('std_msgs/msg/String')(data='hello old viewer')
+    writer.write(bytes(msgs.serialize(msg, 'std_msgs/msg/String')))
+    view = LiveView(port=0)
+    view.start()
+    try:
+        assert wait_until(lambda: topic in view.channels, 60), 'the topic was not served'
+        yield view, topic
+    finally:
+        view.stop()
+        dds.delete(writer)
+
+
+@pytest.mark.parametrize('offer, chosen', [
+    ((OLD_SUBPROTOCOL,), OLD_SUBPROTOCOL),                  # Foxglove Studio 1.x, old Lichtblick
+    ((OLD_SUBPROTOCOL, SUBPROTOCOL), SUBPROTOCOL),
+    ((SUBPROTOCOL,), SUBPROTOCOL),                          # the Foxglove app, new Lichtblick
+])
+def test_a_viewer_offering_either_name_gets_server_info_channels_and_messages(
+        string_view: tuple[LiveView, str], offer: tuple[str, ...], chosen: str) -> None:
+    """Before the relay, foxglove-sdk answered HTTP 400 to a client offering only
+    foxglove.websocket.v1. A WebSocket client library (which fails a handshake naming a protocol
+    it did not offer) now gets serverInfo, the advertisement and the message."""
+    view, topic = string_view
+    session = collect(view.url, {topic}, timeout=60, subprotocols=offer)
+    assert session.subprotocol == chosen
+    assert session.server_info.get('name') == 'vizzy'
+    assert session.channels[topic]['schemaName'] == 'std_msgs/msg/String'
+    assert topic in session.first, f'no message on {topic}'
+    assert msgs.deserialize(session.first[topic], 'std_msgs/msg/String').data == 'hello old viewer'
+
+
+def test_an_old_name_client_on_a_raw_socket_reads_frames_through_the_relay(
+        string_view: tuple[LiveView, str]) -> None:
+    view, topic = string_view
+    client = RawClient(view.port, subprotocols=(OLD_SUBPROTOCOL,))
+    client.sock.settimeout(60)
+    try:
+        assert client.subprotocol == OLD_SUBPROTOCOL
+        opcode, payload = client.frame()
+        assert opcode == 1 and json.loads(payload)['op'] == 'serverInfo'
+        client.subscribe(topic)
+        _sub, data = client.data()
+        assert msgs.deserialize(data, 'std_msgs/msg/String').data == 'hello old viewer'
+    finally:
+        client.close()
+
+
+def test_a_plain_http_request_gets_a_clear_answer(string_view: tuple[LiveView, str]) -> None:
+    """The SDK closes a non-upgrade request without a word; the view says what it is."""
+    view, _topic = string_view
+    with socket.create_connection(('127.0.0.1', view.port), timeout=30) as sock:
+        sock.sendall(b'GET / HTTP/1.1\r\nHost: x\r\n\r\n')
+        answer = b''
+        while chunk := sock.recv(4096):
+            answer += chunk
+    assert answer.startswith(b'HTTP/1.1 426 Upgrade Required\r\n')
+    assert b'Foxglove WebSocket' in answer
 
 
 # on the real tier the nodes run on the real rclpy (Fast DDS); the view on Cyclone

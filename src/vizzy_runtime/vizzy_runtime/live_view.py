@@ -19,9 +19,15 @@ slower than the graph, or not at all, gets the newest messages and costs at most
 the images and clouds a reader has queued only the newest is passed on. After a client leaves, the
 freed outboxes are handed back to the system (malloc_trim).
 
-The server listens on 127.0.0.1 (the networking default); with the LAN opt-in (VIZZY_DDS_LAN=1) on
+The view listens on 127.0.0.1 (the networking default); with the LAN opt-in (VIZZY_DDS_LAN=1) on
 every interface. Open it in the Foxglove app (Open connection > Foxglove WebSocket) and import the
 layout `config/foxglove_layout.json` (`foxglove_layout.py` makes it).
+
+Viewers: foxglove-sdk accepts only the subprotocol name `foxglove.sdk.v1` (the Foxglove app,
+Lichtblick from December 2025); older viewers (Foxglove Studio 1.x, Lichtblick before, clients of
+@foxglove/ws-protocol 0.8) offer only `foxglove.websocket.v1`, the same protocol. So the public port
+is a relay (ws_relay.py) that accepts both names, in front of the SDK's server on an internal
+127.0.0.1 port; every client goes through it (0.5-0.6 ms of CPU per MB relayed).
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, cast
 
 from . import loopback, msgs
+from .ws_relay import WsRelay
 
 if TYPE_CHECKING:
     from foxglove.websocket import ServerListener
@@ -118,6 +125,7 @@ class LiveView:
         self._skipped: set[str] = set()
         self._trim_at: float | None = None   # monotonic time to give a left client's memory back
         self._server: Any = None
+        self._relay: WsRelay | None = None
         self._thread: threading.Thread | None = None
 
     # -- lifecycle ---------------------------------------------------------------------------------
@@ -128,17 +136,32 @@ class LiveView:
         from . import dds
         self._context = foxglove.Context()
         self._discovery = dds.Discovery()
+        # the SDK's own server only on loopback, reached through the relay (ws_relay.py)
         self._server = foxglove.start_server(
-            name=self.name, host=self.host, port=self.requested_port, context=self._context,
+            name=self.name, host=loopback.LOOPBACK_V4, port=0, context=self._context,
             # the server calls only the callbacks a listener has (on_subscribe, on_unsubscribe)
             server_listener=cast('ServerListener', self), capabilities=[],
             message_backlog_size=self.client_backlog)
+        relay = WsRelay(self.host, self.requested_port, target_port=int(self._server.port))
+        try:
+            relay.start()
+        except BaseException:   # the public port is taken or bad: nothing left running
+            self._server.stop()
+            self._server = None
+            raise
+        self._relay = relay
         self._thread = threading.Thread(target=self._loop, name='live_view', daemon=True)
         self._thread.start()
         return self.port
 
     @property
     def port(self) -> int:
+        """The public port (the relay's), where viewers connect."""
+        return self._relay.port if self._relay is not None else 0
+
+    @property
+    def sdk_port(self) -> int:
+        """The SDK server's internal loopback port (tests; viewers use `port`)."""
         return int(self._server.port) if self._server is not None else 0
 
     @property
@@ -157,6 +180,9 @@ class LiveView:
             readers, self._readers = self._readers, {}
         for reader in readers.values():
             dds.delete(reader)
+        if self._relay is not None:
+            self._relay.stop()
+            self._relay = None
         if self._server is not None:
             self._server.stop()
             self._server = None
