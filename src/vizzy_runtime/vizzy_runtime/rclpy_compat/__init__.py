@@ -38,14 +38,14 @@ def _on_signal(signum: int, frame: Any) -> None:
 
 
 def init(*, args: list[str] | None = None, context: Context | None = None,
-         domain_id: int | None = None, signal_handler_options: int | None = None,
-         **_ignored: Any) -> None:
+         domain_id: int | None = None, signal_handler_options: int | None = None) -> None:
     """rclpy.init: parse --ros-args (from sys.argv when args is None); SIGINT and SIGTERM shut
     the context down and end spin (see _on_signal), whatever handler was there before (even
     SIG_IGN), as rclpy's. signal_handler_options: rclpy's SignalHandlerOptions as an int (0 none,
     1 SIGINT, 2 SIGTERM, 3 both); by default both for the default context, none otherwise."""
     import sys
-    (context or get_default_context()).init(sys.argv if args is None else args, domain_id)
+    (context or get_default_context()).init(sys.argv if args is None else args,
+                                            domain_id=domain_id)
     if signal_handler_options is None:
         signal_handler_options = 3 if context in (None, get_default_context()) else 0
     if threading.current_thread() is threading.main_thread():
@@ -66,12 +66,26 @@ def shutdown(*, context: Context | None = None, uninstall_handlers: bool | None 
     (context or get_default_context()).shutdown()
 
 
-def try_shutdown(*, context: Context | None = None, uninstall_handlers: bool | None = None) -> None:
+def try_shutdown(*, context: Context | None = None) -> None:
     (context or get_default_context()).try_shutdown()
 
 
-def create_node(node_name: str, **kwargs: Any) -> Node:
-    return Node(node_name, **kwargs)
+def create_node(node_name: str, *, context: Context | None = None,
+                cli_args: list[str] | None = None, namespace: str | None = None,
+                use_global_arguments: bool = True, enable_rosout: bool = True,
+                start_parameter_services: bool = True, parameter_overrides: list[Any] | None = None,
+                allow_undeclared_parameters: bool = False,
+                automatically_declare_parameters_from_overrides: bool = False,
+                enable_logger_service: bool = False) -> Node:
+    """rclpy.create_node: Node(node_name, ...) with the same keywords."""
+    return Node(node_name, context=context, cli_args=cli_args, namespace=namespace,
+                use_global_arguments=use_global_arguments, enable_rosout=enable_rosout,
+                start_parameter_services=start_parameter_services,
+                parameter_overrides=parameter_overrides,
+                allow_undeclared_parameters=allow_undeclared_parameters,
+                automatically_declare_parameters_from_overrides=(
+                    automatically_declare_parameters_from_overrides),
+                enable_logger_service=enable_logger_service)
 
 
 def get_global_executor() -> Executor:

@@ -26,7 +26,10 @@ class Context:
         self._discovery: Any = None
         self.generation = 0  # bumped whenever something is ready to run
 
-    def init(self, args: list[str] | None = None, domain_id: int | None = None) -> None:
+    def init(self, args: list[str] | None = None, *, initialize_logging: bool = True,
+             domain_id: int | None = None) -> None:
+        """rclpy's Context.init. initialize_logging: this runtime's logging needs no set-up, so
+        it changes nothing either way."""
         with self._lock:
             if self._ok:
                 raise RuntimeError('Context.init() must only be called once')
@@ -90,5 +93,7 @@ class Context:
 _default_context = Context()
 
 
-def get_default_context() -> Context:
+def get_default_context(*, shutting_down: bool = False) -> Context:
+    """rclpy's: shutting_down=True asks for no new context to be made; this runtime has one
+    default context for the process and never replaces it, so both return the same."""
     return _default_context

@@ -19,9 +19,10 @@ _TYPE_CHECK_PERIOD_S = 2.0
 
 
 class Future:
-    """rclpy.task.Future subset, for spin_until_future_complete."""
+    """rclpy.task.Future subset, for spin_until_future_complete. executor: rclpy wakes it when
+    the future is done; here whoever completes a future already wakes the executor."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, executor: Executor | None = None) -> None:
         self._done = False
         self._result: Any = None
         self._exception: BaseException | None = None

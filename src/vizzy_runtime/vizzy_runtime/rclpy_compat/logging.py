@@ -60,6 +60,10 @@ def set_default_level(level: str | int) -> None:
                       else LoggingSeverity(level))
 
 
+# rclpy's logging options (rcutils_logger.supported_filters' parameters, and name)
+_LOG_OPTIONS = {'once', 'throttle_duration_sec', 'throttle_time_source_type', 'skip_first', 'name'}
+
+
 class RcutilsLogger:
     def __init__(self, name: str = '') -> None:
         self.name = name
@@ -91,8 +95,22 @@ class RcutilsLogger:
     def is_enabled_for(self, severity: LoggingSeverity | int) -> bool:
         return severity >= self.get_effective_level()
 
-    def log(self, message: Any, severity: LoggingSeverity | int, *, once: bool = False,
-            throttle_duration_sec: float | None = None, skip_first: bool = False, **_: Any) -> bool:
+    def log(self, message: Any, severity: LoggingSeverity | int, **kwargs: Any) -> bool:
+        """rclpy's keywords: once, throttle_duration_sec (with throttle_time_source_type: only
+        rclpy's default, the steady clock), skip_first, name; any other is a TypeError with
+        rclpy's text (checked at every call, where rclpy checks only enabled ones)."""
+        unknown = set(kwargs) - _LOG_OPTIONS
+        if unknown:
+            raise TypeError(f'parameter "{sorted(unknown)[0]}" is not one of the recognized '
+                            f'logging options "{sorted(_LOG_OPTIONS - {"name"})}"')
+        source = kwargs.get('throttle_time_source_type', 'RCUTILS_STEADY_TIME')
+        if source != 'RCUTILS_STEADY_TIME':
+            raise NotImplementedError(f'log(throttle_time_source_type={source!r}): the bundled '
+                                      'runtime throttles on the steady clock only')
+        once = bool(kwargs.get('once', False))
+        throttle_duration_sec = kwargs.get('throttle_duration_sec')
+        skip_first = bool(kwargs.get('skip_first', False))
+        name = str(kwargs.get('name', self.name))
         severity = LoggingSeverity(severity)
         if not self.is_enabled_for(severity):
             return False
@@ -114,7 +132,7 @@ class RcutilsLogger:
             self._last[key] = now
         stamp_ns = time.time_ns()
         seconds, nanoseconds = divmod(stamp_ns, 1_000_000_000)
-        line = f'[{severity.name}] [{seconds}.{nanoseconds:09d}] [{self.name}]: {message}\n'
+        line = f'[{severity.name}] [{seconds}.{nanoseconds:09d}] [{name}]: {message}\n'
         with _lock:
             sys.stderr.write(line)
             sys.stderr.flush()
@@ -122,29 +140,29 @@ class RcutilsLogger:
         if sink is not None and not getattr(_in_sink, 'active', False):
             _in_sink.active = True
             try:
-                sink(stamp_ns, int(severity), self.name, str(message), *_caller())
+                sink(stamp_ns, int(severity), name, str(message), *_caller())
             except Exception:  # noqa: BLE001 - /rosout never breaks logging (rcl just drops it)
                 pass
             finally:
                 _in_sink.active = False
         return True
 
-    def debug(self, message: Any, **kw: Any) -> bool:
-        return self.log(message, LoggingSeverity.DEBUG, **kw)
+    def debug(self, message: Any, **kwargs: Any) -> bool:
+        return self.log(message, LoggingSeverity.DEBUG, **kwargs)
 
-    def info(self, message: Any, **kw: Any) -> bool:
-        return self.log(message, LoggingSeverity.INFO, **kw)
+    def info(self, message: Any, **kwargs: Any) -> bool:
+        return self.log(message, LoggingSeverity.INFO, **kwargs)
 
-    def warning(self, message: Any, **kw: Any) -> bool:
-        return self.log(message, LoggingSeverity.WARN, **kw)
+    def warning(self, message: Any, **kwargs: Any) -> bool:
+        return self.log(message, LoggingSeverity.WARN, **kwargs)
 
     warn = warning
 
-    def error(self, message: Any, **kw: Any) -> bool:
-        return self.log(message, LoggingSeverity.ERROR, **kw)
+    def error(self, message: Any, **kwargs: Any) -> bool:
+        return self.log(message, LoggingSeverity.ERROR, **kwargs)
 
-    def fatal(self, message: Any, **kw: Any) -> bool:
-        return self.log(message, LoggingSeverity.FATAL, **kw)
+    def fatal(self, message: Any, **kwargs: Any) -> bool:
+        return self.log(message, LoggingSeverity.FATAL, **kwargs)
 
 
 def get_logger(name: str) -> RcutilsLogger:

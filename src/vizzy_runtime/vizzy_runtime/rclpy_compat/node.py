@@ -36,7 +36,7 @@ from .qos import (
     qos_profile_parameter_events,
     qos_profile_rosout_default,
 )
-from .time import Clock, ClockType, ROSClock, Time
+from .time import Clock, ROSClock, Time
 
 ParameterEvent = msgs.get_message('rcl_interfaces/msg/ParameterEvent')
 
@@ -244,8 +244,11 @@ class Node:
                  parameter_overrides: list[Parameter] | None = None,
                  allow_undeclared_parameters: bool = False,
                  automatically_declare_parameters_from_overrides: bool = False,
-                 **_ignored: Any) -> None:
+                 enable_logger_service: bool = False) -> None:
         from . import arguments
+        if enable_logger_service:   # rclpy's get/set_logger_levels services (`ros2 logger`)
+            raise NotImplementedError('Node(enable_logger_service=True): the bundled runtime has '
+                                      'no logger services (see rclpy_compat/README.md)')
         self.context = context or get_default_context()
         if not self.context.ok():
             raise RuntimeError('rclpy.init() has not been called (or the context was shut down)')
@@ -339,8 +342,18 @@ class Node:
         return fqn if only_expand else remap(fqn, self._args.remaps, self._name, self._namespace)
 
     # --- entities ---------------------------------------------------------------------------
-    def create_publisher(self, msg_type: type, topic: str, qos_profile: QoSProfile | int,
-                         **_ignored: Any) -> Publisher:
+    def create_publisher(self, msg_type: type, topic: str, qos_profile: QoSProfile | int, *,
+                         callback_group: Any = None, event_callbacks: Any = None,
+                         qos_overriding_options: Any = None,
+                         publisher_class: type[Publisher] = Publisher) -> Publisher:
+        """rclpy's signature; callback_group is accepted (every callback runs in the executor's
+        one thread: rclpy's mutually exclusive group); the rest are refused unless left at
+        their default (rclpy_compat/README.md)."""
+        _refuse_unsupported('create_publisher', event_callbacks=event_callbacks,
+                            qos_overriding_options=qos_overriding_options)
+        if publisher_class is not Publisher:
+            raise NotImplementedError(f'create_publisher(publisher_class={publisher_class!r}): '
+                                      'the bundled runtime makes only its own Publisher')
         pub = Publisher(self, msg_type, self.resolve_topic_name(topic), as_profile(qos_profile))
         with self._lock:
             self.publishers.append(pub)
@@ -349,8 +362,19 @@ class Node:
         return pub
 
     def create_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
-                            qos_profile: QoSProfile | int, *, raw: bool = False,
-                            direct: bool = False, **_ignored: Any) -> Subscription:
+                            qos_profile: QoSProfile | int, *, callback_group: Any = None,
+                            event_callbacks: Any = None, qos_overriding_options: Any = None,
+                            raw: bool = False) -> Subscription:
+        """rclpy's signature; raw (serialized bytes to the callback) and callback_group (see
+        create_publisher) are honoured, event_callbacks and qos_overriding_options refused."""
+        _refuse_unsupported('create_subscription', event_callbacks=event_callbacks,
+                            qos_overriding_options=qos_overriding_options)
+        return self._create_subscription(msg_type, topic, callback, qos_profile, raw=raw)
+
+    def _create_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
+                             qos_profile: QoSProfile | int, *, raw: bool = False,
+                             direct: bool = False) -> Subscription:
+        """direct: the callback runs in the DDS listener thread (this runtime's /clock only)."""
         sub = Subscription(self, msg_type, self.resolve_topic_name(topic), callback,
                            as_profile(qos_profile), raw, direct)
         with self._lock:
@@ -367,10 +391,6 @@ class Node:
             self.timers.append(timer)
         self.context.notify()
         return timer
-
-    def create_wall_timer(self, timer_period_sec: float, callback: Callable[[], Any]) -> Timer:
-        return self.create_timer(timer_period_sec, callback,
-                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def destroy_publisher(self, publisher: Publisher) -> bool:
         with self._lock:
@@ -686,8 +706,8 @@ class Node:
         /clock is kept for when it is turned on again)."""
         if enabled and self._clock_sub is None:
             clock_type = msgs.get_message('rosgraph_msgs/msg/Clock')
-            self._clock_sub = self.create_subscription(clock_type, '/clock', self._on_clock,
-                                                       qos_profile_clock, direct=True)
+            self._clock_sub = self._create_subscription(clock_type, '/clock', self._on_clock,
+                                                        qos_profile_clock, direct=True)
         elif not enabled and self._clock_sub is not None:
             self.destroy_subscription(self._clock_sub)
             self._clock_sub = None
@@ -721,6 +741,15 @@ class Node:
             if timer.clock is clock and not timer.is_canceled() and timer._next <= now:
                 self.context.notify()
                 return
+
+
+def _refuse_unsupported(where: str, **given: Any) -> None:
+    """rclpy keywords this runtime does not implement: refused when set, never silently
+    ignored (issue 30); None, their default, is fine."""
+    for name, value in given.items():
+        if value is not None:
+            raise NotImplementedError(f'{where}({name}=...): not supported by the bundled runtime '
+                                      '(see vizzy_runtime/rclpy_compat/README.md)')
 
 
 def _apply_range(param: Parameter, rng: Any, is_float: bool) -> Any:

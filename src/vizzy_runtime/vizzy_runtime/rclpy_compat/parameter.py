@@ -116,14 +116,16 @@ class Parameter:
             name=self._name, value=self.get_parameter_value())
 
     @classmethod
-    def from_parameter_msg(cls, msg: Any) -> Parameter:
-        return cls(msg.name, Parameter.Type(msg.value.type), parameter_value_to_python(msg.value))
+    def from_parameter_msg(cls, param_msg: Any) -> Parameter:
+        return cls(param_msg.name, Parameter.Type(param_msg.value.type),
+                   parameter_value_to_python(param_msg.value))
 
     def __repr__(self) -> str:
         return f'Parameter({self._name!r}, {self._type.name}, {self._value!r})'
 
 
-def parameter_value_to_python(value: Any) -> Any:
+def parameter_value_to_python(parameter_value: Any) -> Any:
+    value = parameter_value
     t = Parameter.Type(value.type)
     if t == Parameter.Type.NOT_SET:
         return None

@@ -36,6 +36,7 @@ from .. import dds, msgs
 from .executors import Future
 from .param_services import QOS, SERVICES, decode, encode, unique_id, user_data_value, wire_type
 from .parameter import Parameter
+from .qos import QoSProfile, qos_profile_services_default
 
 if TYPE_CHECKING:
     from .node import Node
@@ -243,8 +244,14 @@ class AsyncParameterClient:
     """rclpy's AsyncParameterClient: each call returns a Future whose result is the service's
     response (e.g. GetParameters_Response with `values`)."""
 
-    def __init__(self, node: Node, remote_node_name: str, qos_profile: Any = None,
+    def __init__(self, node: Node, remote_node_name: str,
+                 qos_profile: QoSProfile = qos_profile_services_default,
                  callback_group: Any = None) -> None:
+        # callback_group: accepted (one executor thread runs every callback); the services' QoS
+        # is rmw's for services (param_services.QOS): another profile is refused, not ignored
+        if qos_profile != qos_profile_services_default:
+            raise NotImplementedError(f'AsyncParameterClient(qos_profile={qos_profile!r}): the '
+                                      'bundled runtime uses the services default QoS only')
         name = remote_node_name if remote_node_name.startswith('/') else \
             f'{node.get_namespace().rstrip("/")}/{remote_node_name}'
         self.remote_node_name = name

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import Any
 
 from .. import dds
 from .duration import Duration
@@ -50,7 +49,12 @@ class QoSProfile:
                  durability: DurabilityPolicy = DurabilityPolicy.VOLATILE,
                  liveliness: LivelinessPolicy = LivelinessPolicy.SYSTEM_DEFAULT,
                  deadline: Duration | None = None, lifespan: Duration | None = None,
-                 liveliness_lease_duration: Duration | None = None, **_ignored: Any) -> None:
+                 liveliness_lease_duration: Duration | None = None,
+                 avoid_ros_namespace_conventions: bool = False) -> None:
+        if avoid_ros_namespace_conventions:   # rclpy takes it; the topic names here are always
+            raise NotImplementedError(    # ROS-mangled (rt/...), as rmw's default
+                'QoSProfile(avoid_ros_namespace_conventions=True): not supported by the bundled '
+                'runtime')
         if depth is None and history == HistoryPolicy.KEEP_LAST:
             raise ValueError('QoSProfile: depth is required with KEEP_LAST history')
         if depth is not None and depth < 0:

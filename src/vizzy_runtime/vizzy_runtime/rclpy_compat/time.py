@@ -7,10 +7,13 @@ import threading
 import time as _time
 from collections.abc import Callable
 from enum import IntEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .. import msgs
 from .duration import Duration
+
+if TYPE_CHECKING:
+    from .context import Context
 
 
 class ClockType(IntEnum):
@@ -127,11 +130,19 @@ class Clock:
         for callback in list(self._on_change):
             callback()
 
-    def sleep_for(self, rel: Duration) -> bool:
-        return self.sleep_until(self.now() + rel)
+    def sleep_for(self, rel_time: Duration, context: Context | None = None) -> bool:
+        return self.sleep_until(self.now() + rel_time, context)
 
-    def sleep_until(self, until: Time) -> bool:
+    def sleep_until(self, until: Time, context: Context | None = None) -> bool:
+        """As rclpy's: True once `until` is reached on this clock, False when the context shuts
+        down first (NotInitializedException, as RuntimeError here, if it is not initialized)."""
+        from .context import get_default_context
+        context = context or get_default_context()
+        if not context.ok():
+            raise RuntimeError('sleep_until: the context is not initialized or was shut down')
         while True:
+            if not context.ok():
+                return False
             remaining = until.nanoseconds - self.now().nanoseconds
             if remaining <= 0:
                 return True
