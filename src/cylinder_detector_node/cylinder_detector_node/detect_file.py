@@ -193,6 +193,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--radius-min', type=positive(float), default=0.01)
     ap.add_argument('--radius-max', type=positive(float), default=0.1)
     ap.add_argument('--min-confidence', type=float, default=0.5, help='Eq. 4.4 threshold')
+    ap.add_argument('--min-normal-agreement', type=float, default=0.7,
+                    help='least fraction of a fit\'s side points whose normal is within 20 deg of '
+                         'radial (0 = off): flat faces (a box) fail it')
     ap.add_argument('--voxel', type=positive(float), default=0.01,
                     help='downsampling (m) for plane and clusters')
     ap.add_argument('--min-cluster-points', type=positive(int), default=30)
@@ -244,7 +247,8 @@ def main(argv: list[str] | None = None) -> int:
                             up_tolerance_deg=args.up_tolerance)
         fit = FitParams(method=args.method, gmm=TABLE_4_1[args.bias],
                         n_directions=args.n_directions, radius_min=args.radius_min,
-                        radius_max=args.radius_max, min_confidence=args.min_confidence)
+                        radius_max=args.radius_max, min_confidence=args.min_confidence,
+                        min_normal_agreement=args.min_normal_agreement)
         pts, image = load_cloud(args.cloud)
         if args.image is not None:
             import cv2

@@ -162,6 +162,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param('min_confidence', 0.5,
           'Eq. 4.4 threshold N_model / N_cluster, in [0, 1]: clusters below it are not '
           'cylinders.', '[0, 1]'),
+    Param('min_normal_agreement', 0.7,
+          'Least fraction of a fit\'s side points whose normal is within 20 deg of radial, in '
+          '[0, 1] (0 = off): a box\'s faces pass Eq. 4.4 but fail this.', '[0, 1]'),
     Param('voxel_size_m', 0.01, 'Downsampling voxel for the plane RANSAC and clustering [m], '
           'in (0, 0.2].', '(0, 0.2]'),
     Param('plane_distance_m', 0.01, 'RANSAC inlier distance of the table plane [m], in '
@@ -215,7 +218,8 @@ def pipeline_params(p: dict[str, Any]) -> tuple[SegmentParams, FitParams]:
                         max_range=p['max_range_m'] or None, up_tolerance_deg=p['up_tolerance_deg'])
     fit = FitParams(method=p['method'], gmm=TABLE_4_1[p['bias']], n_directions=p['n_directions'],
                     radius_min=p['radius_min_m'], radius_max=p['radius_max_m'],
-                    min_confidence=p['min_confidence'])
+                    min_confidence=p['min_confidence'],
+                    min_normal_agreement=p['min_normal_agreement'])
     return seg, fit
 
 

@@ -5,7 +5,9 @@ baseline). Stage 2 (same for both): rotate the points so the axis is z, project 
 (normal roughly orthogonal to the axis) on the xy plane, and find the circle (centre, radius) by a
 circle Hough transform (votes counted with np.bincount), refined by an algebraic least-squares
 circle fit on the Hough inliers. Height is the
-inliers' extent along the axis; confidence is N_model / N_cluster (Eq. 4.4).
+inliers' extent along the axis; confidence is N_model / N_cluster (Eq. 4.4). normal_agreement is
+the fraction of the side inliers whose normal is radial (issue 31: a box's faces pass Eq. 4.4 but
+not this); a fit below FitParams.min_normal_agreement gets its axis refined from those normals.
 """
 
 from __future__ import annotations
@@ -69,6 +71,15 @@ class FitParams:
     retry_below: float = 0.5
     retry_separation_deg: float = 45.0   #: the retried peaks are this far apart (as axes)
     seed: int = 0                        #: seeds the GMM accumulator
+    normal_agreement_deg: float = 20.0
+    """A side inlier's normal agrees with the fit when it is within this angle of the radial
+    direction (a cylinder's normals all point at its axis)."""
+    min_normal_agreement: float = 0.7
+    """detect_cylinders refuses fits whose side inliers agree less often than this (fit_cylinder
+    reports Cylinder.normal_agreement, refines the axis of fits below it (refine_axis) and applies
+    Eq. 4.4 only): Eq. 4.4 counts points near the circle, so the two faces of a box corner (normals
+    in two directions, a circle of about half the box's width through them) passed it (issue 31);
+    0 turns both off."""
 
     def __post_init__(self) -> None:
         problems = []
@@ -89,6 +100,10 @@ class FitParams:
             problems.append('normal_axis_max_dot must be in (0, 1]')
         if not 0 <= self.min_confidence <= 1:
             problems.append('min_confidence must be in [0, 1]')
+        if not 0 <= self.min_normal_agreement <= 1:
+            problems.append('min_normal_agreement must be in [0, 1]')
+        if not 0 < self.normal_agreement_deg < 90:
+            problems.append('normal_agreement_deg must be in (0, 90)')
         if problems:
             raise ValueError('FitParams: ' + '; '.join(problems))
 
@@ -110,6 +125,8 @@ class Cylinder:
     confidence: float
     n_inliers: int
     n_points: int
+    #: fraction of the side inliers whose normal is radial (FitParams.normal_agreement_deg)
+    normal_agreement: float = 1.0
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -316,9 +333,36 @@ def fit_cylinder(points: Array, params: FitParams | None = None, directions: Arr
             other = fit_with_axis(pts, normals, best_axis, params)
             if other is not None:
                 fit = other
+    if fit is not None and fit.normal_agreement < params.min_normal_agreement:
+        # N_d = 450 cells lie ~10 deg apart: a lying pipe's axis can be off by that much, and its
+        # normals then look tilted from radial. A cylinder's normals are all orthogonal to its
+        # axis, so the normals of the side inliers give the axis (their scatter's least
+        # eigenvector); a box's face normals already are orthogonal to the axis and gain nothing.
+        # Kept only if Eq. 4.4 does not fall too (else lid-heavy clusters' axes got worse).
+        for _ in range(2):
+            refined = refine_axis(pts, normals, fit, params)
+            if (refined is None or refined.normal_agreement <= fit.normal_agreement
+                    or refined.confidence < fit.confidence):
+                break
+            fit = refined
     if fit is None or fit.confidence < params.min_confidence:
         return None
     return fit
+
+
+def refine_axis(pts: Array, normals: Array, cyl: Cylinder, params: FitParams) -> Cylinder | None:
+    """Stage 2 again about the axis the side inliers' normals are most orthogonal to."""
+    a, c = np.asarray(cyl.axis), np.asarray(cyl.centre)
+    v = pts - c
+    dist = np.linalg.norm(v - np.outer(v @ a, a), axis=1)
+    inl = ((np.abs(dist - cyl.radius) < params.inlier_distance * cyl.radius + params.inlier_floor)
+           & (np.abs(normals @ a) < params.normal_axis_max_dot))
+    if inl.sum() < params.min_points:
+        return None
+    n = normals[inl]
+    _, vecs = np.linalg.eigh(n.T @ n)
+    axis = vecs[:, 0] if vecs[:, 0] @ a >= 0 else -vecs[:, 0]
+    return fit_with_axis(pts, normals, axis, params)
 
 
 def weighted_inliers(pts: Array, weights: Array, cyl: Cylinder, params: FitParams) -> float:
@@ -356,4 +400,23 @@ def fit_with_axis(pts: Array, normals: Array, axis: Array, params: FitParams) ->
     z0, z1 = float(z.min()), float(z.max())
     centre = rot.T @ np.array([centre_xy[0], centre_xy[1], 0.5 * (z0 + z1)])
     return Cylinder(vec3(centre), vec3(axis), float(radius), z1 - z0,
-                    float(n_in / len(pts)), n_in, len(pts))
+                    float(n_in / len(pts)), n_in, len(pts),
+                    normal_agreement(q[inl & side, :2] - centre_xy, normals[inl & side] @ rot.T,
+                                     params.normal_agreement_deg))
+
+
+def normal_agreement(radial_xy: Array, normals: Array, max_angle_deg: float) -> float:
+    """Fraction of surface points (radial_xy: their offset from the axis, in the frame where the
+    axis is z; normals in that frame) whose normal lies within max_angle_deg of the radial
+    direction, either sign (PCA normals are unsigned). A cylinder's normals are radial; a flat
+    face's are not, except where it touches the circle (the test PCL's normal-distance cylinder
+    model makes, as a separate check on the fit rather than a change to Eq. 4.4)."""
+    if len(radial_xy) == 0:
+        return 0.0
+    r = np.linalg.norm(radial_xy, axis=1)
+    n = np.linalg.norm(normals, axis=1)
+    ok = (r > 0) & (n > 0)
+    if not ok.any():
+        return 0.0
+    cos = np.abs(np.einsum('ij,ij->i', radial_xy[ok], normals[ok, :2])) / (r[ok] * n[ok])
+    return float(np.count_nonzero(cos >= np.cos(np.radians(max_angle_deg)))) / len(radial_xy)

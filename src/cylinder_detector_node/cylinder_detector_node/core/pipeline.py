@@ -7,15 +7,21 @@ of Table 4.1 mean "upright on the table"; results are returned in the cloud's fr
 each stage is kept (segmentation, classification, identification: the rows of Table 4.2), wall and
 process CPU time, and the CPU and wall time of each step (downsample, plane, clusters,
 classification, fitting, total) in stage_cpu_ms and stage_wall_ms.
+
+Two checks beyond Eq. 4.4 (issue 31: a real milk carton scored 0.52 and a bottle's handle 0.87):
+a cluster that is part of a larger object (off the table, beside another cluster: a handle) is not
+fitted (parts_of_objects), and a fit whose side points' normals are not radial (a box's faces) is
+rejected (FitParams.min_normal_agreement, core.fitting.normal_agreement).
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+import open3d as o3d
 from numpy.typing import NDArray
 
 from .fitting import Cylinder, FitParams, fit_cylinder, make_directions, rotation_to_z, vec3
@@ -34,6 +40,10 @@ class Detection:
     rejected: int = 0
     #: clusters the classifier rejected (not fitted)
     rejected_by_classifier: int = 0
+    #: clusters that are parts of a larger object (parts_of_objects; not fitted)
+    rejected_parts: int = 0
+    #: fits whose normals are not radial (below FitParams.min_normal_agreement)
+    rejected_surface: int = 0
     n_clusters: int = 0                                          #: clusters out of the segmentation
     plane: Array | None = None
     messages: list[str] = field(default_factory=list)
@@ -64,6 +74,52 @@ def image_problem(image: Any, cloud_shape: tuple[int, ...]) -> str | None:
                 f'{cloud_shape[1]}x{cloud_shape[0]} '
                 f'cloud (width x height)')
     return None
+
+
+#: m: a cluster whose lowest point is this far above the table does not stand on it (objects on the
+#: table start at SegmentParams.min_height, 1 cm)
+PART_LIFT = 0.03
+#: m: a neighbour rising this far above such a cluster's lowest point is beside it, not under it
+PART_OVERHANG = 0.02
+
+
+def parts_of_objects(clusters: list[Cluster], plane: Array, gap: float) -> list[int | None]:
+    """For each cluster, the index of the larger object it is a part of, or None.
+
+    A part does not reach the table (its lowest point more than PART_LIFT above the plane) and has
+    another cluster within `gap` of its points that stands on the table, has more points and rises
+    more than PART_OVERHANG above the part's lowest point: the object it hangs from, beside it (a
+    bottle's body beside its handle, which the clustering split off across a gap of a little more
+    than its eps). Something standing on another object (a cup on books) has that object's top
+    under it, not beside it, and stays an object; so does a cluster with nothing near it, and one
+    whose bottom is hidden behind an object that does not stand on the table either or is smaller.
+    """
+    n = np.asarray(plane[:3], dtype=np.float64)
+    heights = [cl.points @ n + float(plane[3]) for cl in clusters]
+    low = [float(h.min()) if len(h) else 0.0 for h in heights]
+    high = [float(h.max()) if len(h) else 0.0 for h in heights]
+    clouds: dict[int, o3d.geometry.PointCloud] = {}
+
+    def cloud(i: int) -> o3d.geometry.PointCloud:
+        if i not in clouds:
+            clouds[i] = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(clusters[i].points))
+        return clouds[i]
+
+    out: list[int | None] = [None] * len(clusters)
+    for a, ca in enumerate(clusters):
+        if low[a] <= PART_LIFT or not len(ca.points):
+            continue
+        for b, cb in enumerate(clusters):
+            if (b == a or low[b] > PART_LIFT or high[b] <= low[a] + PART_OVERHANG
+                    or len(cb.points) <= len(ca.points)
+                    or np.any(cb.box_min - ca.box_max > gap)
+                    or np.any(ca.box_min - cb.box_max > gap)):
+                continue
+            dist = np.asarray(cloud(a).compute_point_cloud_distance(cloud(b)), dtype=np.float64)
+            if len(dist) and float(dist.min()) <= gap:
+                out[a] = b
+                break
+    return out
 
 
 def _totals(out: Detection, t0: float, c0: float) -> None:
@@ -114,9 +170,14 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
         return out
     rot = rotation_to_z(s.plane[:3])          # cloud frame -> table frame (normal to +z)
     directions = make_directions(fit)
-    for cl, prob in zip(s.clusters, probs, strict=True):
+    # twice the clustering's reach: the gap it split a handle from its body across
+    parts = parts_of_objects(s.clusters, s.plane, 2.0 * (seg or SegmentParams()).cluster_eps)
+    for cl, prob, part in zip(s.clusters, probs, parts, strict=True):
         if prob is not None and prob < classifier_threshold:
             out.rejected_by_classifier += 1
+            continue
+        if part is not None:
+            out.rejected_parts += 1
             continue
         if len(cl.points) < fit.min_points:
             out.messages.append(f'cluster of {len(cl.points)} points is too small to fit '
@@ -126,12 +187,14 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
         if c is None:
             out.rejected += 1
             continue
+        if c.normal_agreement < fit.min_normal_agreement:
+            out.rejected_surface += 1
+            continue
         centre = rot.T @ np.array(c.centre)
         axis = rot.T @ np.array(c.axis)
         if axis @ s.plane[:3] < 0:
             axis = -axis
-        out.cylinders.append(Cylinder(vec3(centre), vec3(axis), c.radius, c.height,
-                                      c.confidence, c.n_inliers, c.n_points))
+        out.cylinders.append(replace(c, centre=vec3(centre), axis=vec3(axis)))
         out.clusters.append(cl)
         out.probabilities.append(prob)
     out.timings_ms['identification'] = 1e3 * (time.perf_counter() - t2)
@@ -140,7 +203,15 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
     if out.rejected_by_classifier:
         out.messages.append(f'{out.rejected_by_classifier} cluster(s) below classifier probability '
                             f'{classifier_threshold}: not cylinders (not fitted)')
+    if out.rejected_parts:
+        out.messages.append(f'{out.rejected_parts} cluster(s) off the table beside a larger one '
+                            f'(a handle, a part of an object): not fitted')
     if out.rejected:
         out.messages.append(f'{out.rejected} cluster(s) below confidence {fit.min_confidence} '
                             f'(Eq. 4.4): not cylinders')
+    if out.rejected_surface:
+        out.messages.append(f'{out.rejected_surface} fit(s) with under '
+                            f'{fit.min_normal_agreement:g} of their side normals within '
+                            f'{fit.normal_agreement_deg:g} deg of radial (flat faces, e.g. a box): '
+                            f'not cylinders')
     return out
