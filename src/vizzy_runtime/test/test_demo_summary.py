@@ -323,6 +323,23 @@ def test_panel_1_shows_the_frame_with_the_most_confident_correct_detections(
     assert result['panels']['foveated'].facts == {'frame': "panel 1's frame", 'stamp_ns': S}
 
 
+def test_panel_4_takes_the_foveated_frame_nearest_panel_1_s_when_it_has_none(
+        tmp_path: Path) -> None:
+    """Panel 1's frame was suppressed in a saccade (or came before the recording caught
+    foveation's output): the nearest foveated frame in time, not the last one (which may show
+    the wall the head turned to at the end of the run)."""
+    samples = [s for s in story_samples([EARLY, *LATE])
+               if not (s[0] == '/foveation/image' and s[2] == S + 1000)]
+    samples.append(('/foveation/image', 'sensor_msgs/msg/Image', S + S // 5 + 1000,
+                    image(S + S // 5, 30)))
+    samples.append(('/foveation/image', 'sensor_msgs/msg/Image', S - S // 2 + 1000,
+                    image(S - S // 2, 30)))
+    result = summarize(tmp_path, samples)
+    assert result['panels']['left'].facts['stamp_ns'] == S
+    assert result['panels']['foveated'].facts == {
+        'frame': f"+{S // 5 * 1e-9:.2f} s from panel 1's frame", 'stamp_ns': S + S // 5}
+
+
 def test_panel_1_ties_go_to_the_later_frame(tmp_path: Path) -> None:
     tie = detections(2 * S, 1, [('can', 0.6, CENTRE), ('jar', 0.3, LEFT)])   # 0.6 as EARLY
     result = summarize(tmp_path, story_samples([EARLY, LATE[0], tie]))

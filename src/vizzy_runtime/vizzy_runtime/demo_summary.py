@@ -39,8 +39,8 @@ the table the map named right by the end.
    at 10 cm dashed (precision is not drawn while nothing is confirmed); on the right axis the
    number of confirmed and of established unconfirmed objects. Each value holds until the next
    map, the last one until the end of the run.
-4. The foveated image (/foveation/image) of panel 1's frame (the latest one stamped at or
-   before it), else the last one.
+4. The foveated image (/foveation/image) of panel 1's frame (else the one nearest in time),
+   else the last one.
 5. The cylinders found (/cylinders: each one's footprint, an upright one a circle of its radius
    at its axis) against the ground truth, in base_link.
 6. A top view of the stereo points (/stereo/points, every cloud) and of the Sensory Ego-Sphere
@@ -307,12 +307,12 @@ def _fetch_frame(d: _Data, stamp: int) -> tuple[int, str, bytes] | None:
 
 
 def _fetch_foveated(d: _Data, stamp: int) -> tuple[int, str, bytes] | None:
-    """The foveated image of the left frame stamped stamp (the latest at or before it), read
-    again from the bag; None when there is none."""
-    earlier = [s for s in d.foveated_log if s <= stamp]
-    if not earlier or d.bag_dir is None:
+    """The foveated image of the left frame stamped stamp (else the nearest one in time: the
+    frame itself may have been suppressed in a saccade, or come before the recording caught
+    foveation's output), read again from the bag; None when there is none."""
+    if not d.foveated_log or d.bag_dir is None:
         return None
-    best = max(earlier)
+    best = min(d.foveated_log, key=lambda s: (abs(s - stamp), s > stamp))
     log_ns = d.foveated_log[best]
     for _topic, typename, data, _log, _pub in BagReader(d.bag_dir).messages(
             topics=(FOVEATED,), start_ns=log_ns, stop_ns=log_ns + 1):
@@ -821,7 +821,10 @@ def _draw_foveated(ax: Any, d: _Data, p: Panel, choice: _Choice) -> None:
     if choice.frame is not None and choice.rule != 'last frame':
         at = _fetch_foveated(d, choice.frame[0])
         if at is not None:
-            which, chosen = "panel 1's frame", at
+            dt = (at[0] - choice.frame[0]) * 1e-9
+            which = ("panel 1's frame" if at[0] == choice.frame[0]
+                     else f"{dt:+.2f} s from panel 1's frame")
+            chosen = at
     msg = msgs.deserialize(chosen[2], chosen[1])
     p.facts = {'frame': which, 'stamp_ns': chosen[0]}
     img = image_to_numpy(msg)
