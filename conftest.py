@@ -12,8 +12,9 @@ import random
 
 import pytest
 
-if not os.environ.get('ROS_DOMAIN_ID'):    # unset or empty (ROS 2 reads empty as 0): a random one
-    os.environ['ROS_DOMAIN_ID'] = str(random.Random().randint(100, 200))
+if os.environ.get('ROS_DOMAIN_ID') == '':  # empty counts as unset (ROS 2 would read it as 0)
+    del os.environ['ROS_DOMAIN_ID']
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 200)))
 os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 
 

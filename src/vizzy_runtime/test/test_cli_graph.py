@@ -18,6 +18,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from vizzy_runtime.testing import wait_until
+
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
@@ -72,10 +74,8 @@ def talker(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
                                 stderr=subprocess.STDOUT,
                                 env={**os.environ, 'VIZZY_RUNTIME': 'bundled'})
     try:
-        deadline = time.monotonic() + 60
-        while 'up' not in log.read_text() and proc.poll() is None:
-            assert time.monotonic() < deadline, log.read_text()
-            time.sleep(0.05)
+        assert wait_until(lambda: 'up' in log.read_text() or proc.poll() is not None, 60), \
+            log.read_text()
         assert proc.poll() is None, log.read_text()
         yield log
     finally:
@@ -167,10 +167,8 @@ def test_topic_pub_reaches_a_subscriber_and_echo_prints_yaml(talker: Path) -> No
     assert out.endswith('publisher: beginning loop\n'
                         "publishing #1: std_msgs.msg.String(data='issue 29')\n\n"
                         "publishing #2: std_msgs.msg.String(data='issue 29')\n\n"), out
-    deadline = time.monotonic() + 30
-    while talker.read_text().count('heard issue 29') < 2:
-        assert time.monotonic() < deadline, talker.read_text()
-        time.sleep(0.05)
+    assert wait_until(lambda: talker.read_text().count('heard issue 29') >= 2, 30), \
+        talker.read_text()
     out = vizzy('topic', 'echo', '/chatter', '-n', '2')
     docs = out.split('---\n')
     assert docs[2:] == [''] and all(re.fullmatch(r'data: hello \d+\n', d) for d in docs[:2]), out

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from vizzy_runtime import cli, cli_interface, msg_yaml, msgs
+from vizzy_runtime.loopback import WILDCARD_V4
 from vizzy_runtime.rclpy_compat import arguments
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
@@ -251,11 +252,11 @@ def test_ports_out_of_range_are_refused_by_the_parser(argv: list[str]) -> None:
 def test_view_says_when_it_serves_loopback_only(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv('VIZZY_DDS_LAN', raising=False)
     monkeypatch.setenv('VIZZY_RUNTIME', 'bundled')
-    note = cli.loopback_note('0.0.0.0')
+    note = cli.loopback_note(WILDCARD_V4)
     assert note is not None and 'serves on 127.0.0.1 only' in note and 'VIZZY_DDS_LAN=1' in note
     assert cli.loopback_note(None) is None and cli.loopback_note('127.0.0.1') is None
     monkeypatch.setenv('VIZZY_DDS_LAN', '1')
-    assert cli.loopback_note('0.0.0.0') is None       # the opt-in: it does bind every interface
+    assert cli.loopback_note(WILDCARD_V4) is None     # the opt-in: it does bind every interface
 
 
 def test_a_parameter_without_a_value_says_name_value() -> None:

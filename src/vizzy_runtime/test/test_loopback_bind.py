@@ -101,7 +101,7 @@ def test_the_shim_keeps_a_cyclone_participant_on_loopback() -> None:
 @pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
 def test_a_library_user_s_participant_is_on_loopback_without_the_preload() -> None:
     """pytest, a user's script: nothing re-executed them with LD_PRELOAD, so dds.participant()
-    points Cyclone's own bind slot at the rewrite (issue 28 item 6: before, ['0.0.0.0'])."""
+    points Cyclone's own bind slot at the rewrite (issue 28 item 6: before, the wildcard too)."""
     assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled') == ['127.0.0.1']
 
 
@@ -112,7 +112,7 @@ def test_cyclone_alone_binds_the_wildcard_and_the_patch_touches_only_cyclone() -
     the user's own code binds to the wildcard is not rewritten."""
     assert ANY_V4 in _run(PARTICIPANT, isolated=True, VIZZY_RUNTIME='bundled', VIZZY_DDS_LAN='1')
     own = PARTICIPANT.replace(
-        'print(', 's = __import__("socket").socket(2, 2); s.bind(("0.0.0.0", 0))\nprint(')
+        'print(', f's = __import__("socket").socket(2, 2); s.bind(({ANY_V4!r}, 0))\nprint(')
     assert _run(own, isolated=True, VIZZY_RUNTIME='bundled') == [ANY_V4, '127.0.0.1']
 
 

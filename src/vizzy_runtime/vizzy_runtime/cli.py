@@ -103,7 +103,7 @@ def loopback_note(host: str | None) -> str | None:
     """One line when --host asks for every interface but this process binds loopback only
     (loopback.py's bind shim turns a wildcard bind into 127.0.0.1), else None."""
     from . import loopback
-    if host not in ('0.0.0.0', '::', '') or not loopback.wanted():
+    if host not in (loopback.WILDCARD_V4, '::', '') or not loopback.wanted():
         return None
     return (f'vizzy: view: --host {host or "(any)"} serves on {loopback.LOOPBACK_V4} only: '
             'vizzy keeps its sockets on loopback; set VIZZY_DDS_LAN=1 to serve every interface')
