@@ -183,3 +183,18 @@ def marker_array(header: Any, cylinders: list[FittedCylinder],
         label.text = f'{i}: r {100 * c.radius:.1f} cm, p {conf:.2f}'
         out.markers.append(label)
     return out
+
+
+def report_line(det: Detection, times: list[float], shape: tuple[int, ...], processed: int,
+                dropped: int) -> str:
+    """The periodic log line: frame times over the last period and the last cloud's result."""
+    stages = ', '.join(f'{k} {v:.0f}' for k, v in det.stage_cpu_ms.items())
+    found = ', '.join(f'r {100 * c.radius:.1f} cm h {100 * c.height:.1f} cm '
+                      f'p {c.confidence:.2f}'
+                      for c in det.cylinders) or 'none'
+    return (f'{shape[1]}x{shape[0]} clouds in {np.median(times):.0f} ms median, '
+            f'{max(times):.0f} max over {len(times)} (last, CPU: {stages} ms): '
+            f'{len(det.cylinders)} cylinder(s) '
+            f'({found}), {det.rejected_by_classifier} cluster(s) rejected by the classifier, '
+            f'{det.rejected} by Eq. 4.4; {processed} clouds '
+            f'processed, {dropped} dropped while busy')

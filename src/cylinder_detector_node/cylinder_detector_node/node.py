@@ -64,7 +64,6 @@ Algorithms live in cylinder_detector_node.core; this module only wires them to t
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import replace
 from typing import Any
@@ -73,11 +72,17 @@ import numpy as np
 
 from cylinder_detector_node.core.accumulator import TABLE_4_1
 from cylinder_detector_node.core.classifier import DEFAULT_MODEL, PatchClassifier
-from cylinder_detector_node.core.fitting import METHODS, FitParams
+from cylinder_detector_node.core.fitting import METHODS
 from cylinder_detector_node.core.fitting import Cylinder as FittedCylinder
 from cylinder_detector_node.core.overlay import draw_cylinders, intrinsics_from_organized
-from cylinder_detector_node.core.pipeline import Detection, detect_cylinders, image_problem
-from cylinder_detector_node.core.segmentation import CAMERA_UP, SegmentParams
+from cylinder_detector_node.core.pairing import ImageBuffer, up_in_frame
+from cylinder_detector_node.core.pipeline import (  # noqa: F401 (pipeline_params re-exported)
+    Detection,
+    detect_cylinders,
+    image_problem,
+    pipeline_params,
+)
+from cylinder_detector_node.core.segmentation import CAMERA_UP
 from cylinder_detector_node.messages import (  # noqa: F401 (cloud reasons etc. re-exported)
     BAD_FIELDS,
     CLOUD_REASONS,
@@ -93,6 +98,7 @@ from cylinder_detector_node.messages import (  # noqa: F401 (cloud reasons etc. 
     colour_image_refusal,
     cylinder_array,
     marker_array,
+    report_line,
     rgb_image,
 )
 from vizzy_runtime.convert import (  # noqa: F401 (the image reasons: counter keys, re-exported)
@@ -214,27 +220,6 @@ def check_all(values: dict[str, Any]) -> str | None:
     return None
 
 
-def pipeline_params(p: dict[str, Any]) -> tuple[SegmentParams, FitParams]:
-    """The core's parameters from the node's."""
-    seg = SegmentParams(voxel_size=p['voxel_size_m'], plane_distance=p['plane_distance_m'],
-                        cluster_eps=p['cluster_eps_m'], min_cluster_points=p['min_cluster_points'],
-                        max_range=p['max_range_m'] or None, up_tolerance_deg=p['up_tolerance_deg'])
-    fit = FitParams(method=p['method'], gmm=TABLE_4_1[p['bias']], n_directions=p['n_directions'],
-                    radius_min=p['radius_min_m'], radius_max=p['radius_max_m'],
-                    min_confidence=p['min_confidence'],
-                    min_normal_agreement=p['min_normal_agreement'])
-    return seg, fit
-
-
-def up_in_frame(buffer: TransformBuffer, up_frame: str,
-                cloud_frame: str) -> tuple[float, float, float]:
-    """+z of up_frame expressed in cloud_frame (the latest transform); LookupError if tf has no
-    chain between the two frames."""
-    rot = buffer.lookup_transform(up_frame, cloud_frame)[:3, :3]   # cloud -> up_frame
-    up = rot.T @ np.array([0.0, 0.0, 1.0])
-    return tuple(float(v) for v in up / np.linalg.norm(up))       # type: ignore[return-value]
-
-
 class CylinderDetectorNode(Node):
     """Detects cylinders in each cloud (on a worker thread) and publishes them with markers."""
 
@@ -255,8 +240,7 @@ class CylinderDetectorNode(Node):
         self.last_frame_ms: float | None = None
         self._frame_ms: list[float] = []    # frame times since the last report
 
-        self._lock = threading.Lock()
-        self._images: list[Any] = []        # the last IMAGE_BUFFER images (under _lock)
+        self._images = ImageBuffer(IMAGE_BUFFER, lambda m: stamp_seconds(m.header.stamp))
         self.classifier: PatchClassifier | None = None
         self.last_classified = False        # whether the last cloud went through the classifier
         self.classifier_skipped: str | None = None   # why the last cloud did not, when it was on
@@ -312,9 +296,7 @@ class CylinderDetectorNode(Node):
         if problem:
             self.input_health.refuse(self._image_topic, *problem)
             return
-        with self._lock:
-            self._images.append(msg)
-            del self._images[:-IMAGE_BUFFER]
+        self._images.add(msg)
         self.input_health.accept(self._image_topic)
 
     def _load_classifier(self) -> None:
@@ -331,13 +313,10 @@ class CylinderDetectorNode(Node):
 
     def matching_image(self, stamp: Any) -> tuple[np.ndarray | None, str | None]:
         """(RGB image, None) of the buffered image nearest in time to stamp, or (None, why not)."""
-        with self._lock:
-            images = list(self._images)
-        if not images:
+        nearest = self._images.nearest(stamp_seconds(stamp))
+        if nearest is None:
             return None, f'no image on {self._image_topic} yet'
-        t = stamp_seconds(stamp)
-        best = min(images, key=lambda m: abs(stamp_seconds(m.header.stamp) - t))
-        dt = abs(stamp_seconds(best.header.stamp) - t)
+        best, dt = nearest
         if dt > self._p['image_tolerance_s']:
             return None, (f'no image within {self._p["image_tolerance_s"]:g} s of the cloud '
                           f'(nearest {dt:.3f} s away)')
@@ -361,7 +340,6 @@ class CylinderDetectorNode(Node):
         self._params = pipeline_params(self._p)   # check_all keeps FitParams valid
         if 'use_classifier' in changed or 'classifier_model' in changed:
             self._load_classifier()
-
 
     # --- the worker -----------------------------------------------------------------------------
 
@@ -453,17 +431,8 @@ class CylinderDetectorNode(Node):
             return
         self._last_report = now
         times, self._frame_ms = self._frame_ms, []
-        stages = ', '.join(f'{k} {v:.0f}' for k, v in det.stage_cpu_ms.items())
-        found = ', '.join(f'r {100 * c.radius:.1f} cm h {100 * c.height:.1f} cm '
-                          f'p {c.confidence:.2f}'
-                          for c in det.cylinders) or 'none'
-        self.get_logger().info(
-            f'{shape[1]}x{shape[0]} clouds in {np.median(times):.0f} ms median, '
-            f'{max(times):.0f} max over {len(times)} (last, CPU: {stages} ms): '
-            f'{len(det.cylinders)} cylinder(s) '
-            f'({found}), {det.rejected_by_classifier} cluster(s) rejected by the classifier, '
-            f'{det.rejected} by Eq. 4.4; {self.frames_processed} clouds '
-            f'processed, {self.frames_dropped} dropped while busy')
+        self.get_logger().info(report_line(det, times, shape, self.frames_processed,
+                                           self.frames_dropped))
 
     def destroy_node(self) -> Any:
         worker = getattr(self, '_worker', None)  # None: __init__ failed before it started

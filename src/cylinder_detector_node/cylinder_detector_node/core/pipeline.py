@@ -24,6 +24,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
+from .accumulator import TABLE_4_1
 from .fitting import Cylinder, FitParams, fit_cylinder, make_directions, rotation_to_z, vec3
 from .segmentation import Cluster, SegmentParams, segment_tabletop
 
@@ -215,3 +216,15 @@ def detect_cylinders(points: Array, seg: SegmentParams | None = None, fit: FitPa
                             f'{fit.normal_agreement_deg:g} deg of radial (flat faces, e.g. a box): '
                             f'not cylinders')
     return out
+
+
+def pipeline_params(p: dict[str, Any]) -> tuple[SegmentParams, FitParams]:
+    """The core's parameters from the node's."""
+    seg = SegmentParams(voxel_size=p['voxel_size_m'], plane_distance=p['plane_distance_m'],
+                        cluster_eps=p['cluster_eps_m'], min_cluster_points=p['min_cluster_points'],
+                        max_range=p['max_range_m'] or None, up_tolerance_deg=p['up_tolerance_deg'])
+    fit = FitParams(method=p['method'], gmm=TABLE_4_1[p['bias']], n_directions=p['n_directions'],
+                    radius_min=p['radius_min_m'], radius_max=p['radius_max_m'],
+                    min_confidence=p['min_confidence'],
+                    min_normal_agreement=p['min_normal_agreement'])
+    return seg, fit
