@@ -9,8 +9,21 @@ from typing import Any
 
 import numpy as np
 
-from vizzy_object_map.core.object_map import MapObject, ObjectMap
+from vizzy_object_map.core.object_map import (
+    CameraView,
+    GeometryObservation,
+    MapObject,
+    ObjectMap,
+    Recognition,
+)
+from vizzy_object_map.core.observations import (
+    cluster_observation,
+    cylinder_observation,
+    surface_point_at,
+)
+from vizzy_runtime.convert import stamp_seconds
 from vizzy_runtime.ros import message
+from vizzy_vision.frames import rotation_matrix
 
 MapObjectMsg = message('active_vision_msgs/msg/MapObject')
 MapObjectArray = message('active_vision_msgs/msg/MapObjectArray')
@@ -20,6 +33,10 @@ ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 TimeMsg = message('builtin_interfaces/msg/Time')
+GazeCommand = message('active_vision_msgs/msg/GazeCommand')
+
+FIXATION_PIXEL_PX = 3.0             # a detection this near the principal point is the gaze's own
+FIXATION_SIGMA_M = 0.01             # the vergence point's uncertainty as an object's position
 
 
 def stamp_msg(t: float) -> Any:
@@ -111,3 +128,82 @@ def marker_array(object_map: ObjectMap, frame_id: str, stamp: Any) -> Any:
                      else f'? ({obj.observations})')
         markers.append(text)
     return MarkerArray(markers=markers)
+
+
+def cluster_observations(msg: Any, pose: np.ndarray) -> tuple[list[GeometryObservation],
+                                                               list[str]]:
+    """A Detection3DArray of segmented objects (in the frame pose places in the map) as
+    observations, and a line for each box with non-finite values (left out)."""
+    stamp = stamp_seconds(msg.header.stamp)
+    observations: list[GeometryObservation] = []
+    bad: list[str] = []
+    for det in msg.detections:
+        c, s = det.bbox.center, det.bbox.size
+        centre = np.array([c.position.x, c.position.y, c.position.z], np.float64)
+        quat = (c.orientation.x, c.orientation.y, c.orientation.z, c.orientation.w)
+        size = np.array([s.x, s.y, s.z], np.float64)
+        if not (np.isfinite(centre).all() and np.isfinite(size).all()
+                and np.isfinite(quat).all() and np.linalg.norm(quat) > 1e-9):
+            bad.append(f'cluster {det.id!r}')
+            continue
+        observations.append(cluster_observation(pose, centre, rotation_matrix(quat),
+                                                np.abs(size), stamp))
+    return observations, bad
+
+
+def cylinder_observations(msg: Any, pose: np.ndarray) -> tuple[list[GeometryObservation],
+                                                                list[str]]:
+    """A CylinderArray (in the frame pose places in the map) as observations, and a line for
+    each cylinder with non-finite values or no axis (left out)."""
+    stamp = stamp_seconds(msg.header.stamp)
+    observations: list[GeometryObservation] = []
+    bad: list[str] = []
+    for cyl in msg.cylinders:
+        centre = np.array([cyl.center.x, cyl.center.y, cyl.center.z], np.float64)
+        axis = np.array([cyl.axis.x, cyl.axis.y, cyl.axis.z], np.float64)
+        values = np.concatenate([centre, axis, [cyl.radius, cyl.height]])
+        if not np.isfinite(values).all() or np.linalg.norm(axis) < 1e-9:
+            bad.append(f'cylinder {cyl.id}')
+            continue
+        observations.append(cylinder_observation(pose, centre, axis, float(cyl.radius),
+                                                 float(cyl.height), stamp))
+    return observations, bad
+
+
+def look_command(aim: np.ndarray, source: str, priority: int, dwell_s: float, frame_id: str,
+                 stamp: Any) -> Any:
+    """A saccade to aim (in frame_id) held dwell_s: the object map's look at an unnamed object."""
+    cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
+                      motion=GazeCommand.MOTION_SACCADE, source=source,
+                      priority=priority, hold_time=dwell_s)
+    cmd.header.stamp = stamp
+    cmd.header.frame_id = frame_id
+    (cmd.fixation_point.x, cmd.fixation_point.y,
+     cmd.fixation_point.z) = (float(v) for v in aim)
+    return cmd
+
+
+def recognitions_from(detections: Any, object_map: ObjectMap, view: CameraView, stamp: float,
+                      vergence: np.ndarray | None, depth: np.ndarray | None,
+                      depth_radius_px: float) -> tuple[list[Recognition], list[str]]:
+    """FoveatedDetections as recognitions, placed at the vergence point when at the gaze's own
+    pixel, else (with depth) on the surface under a pixel that shows no known object; and a line
+    for each detection with non-finite values (left out)."""
+    principal = (float(view.k[0, 2]), float(view.k[1, 2]))
+    recognitions: list[Recognition] = []
+    bad: list[str] = []
+    for d in detections:
+        u, v = float(d.fixation_u), float(d.fixation_v)
+        if not (math.isfinite(u) and math.isfinite(v) and math.isfinite(d.score)):
+            bad.append(f'detection {d.label!r}')
+            continue
+        point, cov = None, None
+        if (vergence is not None and abs(u - principal[0]) <= FIXATION_PIXEL_PX
+                and abs(v - principal[1]) <= FIXATION_PIXEL_PX):
+            # the gaze's own pixel shows the point where both optical axes meet
+            point, cov = vergence, np.eye(3) * FIXATION_SIGMA_M ** 2
+        elif depth is not None and object_map.objects_at_pixel(view, u, v) == []:
+            surface = surface_point_at(view, u, v, depth, depth_radius_px)
+            point, cov = surface if surface is not None else (None, None)
+        recognitions.append(Recognition(u, v, d.label, float(d.score), stamp, point, cov))
+    return recognitions, bad

@@ -52,45 +52,36 @@ fields' (a point cloud without x, y, z), 'failed on a ...: <ExcType>' (node_tool
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from typing import Any
 
 import numpy as np
 
 from vizzy_object_map.core.attention import LookConfig, LookScheduler
-from vizzy_object_map.core.object_map import (
-    CameraView,
-    GeometryObservation,
-    MapConfig,
-    ObjectMap,
-    Recognition,
-)
-from vizzy_object_map.core.observations import (
-    cluster_observation,
-    cylinder_observation,
-    fixation_at,
-    surface_point_at,
-)
+from vizzy_object_map.core.object_map import CameraView, MapConfig, ObjectMap
+from vizzy_object_map.core.observations import finite_points, fixation_at
 from vizzy_object_map.messages import (
     Detection3DArray,
+    GazeCommand,
     MapObjectArray,
     MarkerArray,
+    cluster_observations,
+    cylinder_observations,
     detection3d_array,
+    look_command,
     map_object_array,
     marker_array,
+    recognitions_from,
 )
 from vizzy_runtime.convert import ConversionError, camera_k, pointcloud2_to_array, stamp_seconds
 from vizzy_runtime.input_health import InputHealth
 from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
 from vizzy_runtime.ros import Node, message, qos_profile_latched
 from vizzy_runtime.tf import FramePoses, TransformBuffer, TransformListener
-from vizzy_vision.frames import rotation_matrix
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
-GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 CylinderArray = message('active_vision_msgs/msg/CylinderArray')
 
@@ -103,9 +94,7 @@ GAZE_STATE_TOPIC = 'gaze/state'
 GAZE_COMMAND_TOPIC = 'gaze/command'
 GAZE_SOURCE = 'object_map'
 LOOK_PERIOD_S = 0.1                 # how often the look scheduler runs (node clock)
-FIXATION_PIXEL_PX = 3.0             # a detection this near the principal point is the gaze's own
 FIXATION_MAX_AGE_S = 0.25           # a gaze state older than this tells nothing of an image
-FIXATION_SIGMA_M = 0.01             # the vergence point's uncertainty as an object's position
 FIXATIONS_KEPT = 200                # gaze states remembered (several seconds at its rate)
 OBJECTS_TOPIC = 'objects'
 MARKERS_TOPIC = 'objects/markers'
@@ -117,8 +106,7 @@ NO_FRAME_ID = 'no frame_id'
 NO_POSE = 'no pose'
 NON_FINITE = 'non-finite values'
 NO_XYZ = 'no xyz fields'
-#: a stereo cloud is kept this long for recognitions that find no object [s]
-STEREO_MAX_POINTS = 20000
+STEREO_MAX_POINTS = 20000            # a stereo cloud is thinned evenly to at most this
 
 _DEFAULTS = MapConfig()
 # The node declares exactly these; each range is the descriptor's, enforced by the middleware.
@@ -328,22 +316,10 @@ class ObjectMapNode(Node):
         stamp = stamp_seconds(msg.header.stamp)
         depth = self._depth_points(stamp)
         vergence = self.fixation_at(stamp)
-        principal = (float(self._k[0, 2]), float(self._k[1, 2]))
-        recognitions = []
-        for d in chosen:
-            u, v = float(d.fixation_u), float(d.fixation_v)
-            if not (math.isfinite(u) and math.isfinite(v) and math.isfinite(d.score)):
-                self.input_health.refuse(topic, NON_FINITE, f'detection {d.label!r}')
-                continue
-            point, cov = None, None
-            if (vergence is not None and abs(u - principal[0]) <= FIXATION_PIXEL_PX
-                    and abs(v - principal[1]) <= FIXATION_PIXEL_PX):
-                # the gaze's own pixel shows the point where both optical axes meet
-                point, cov = vergence, np.eye(3) * FIXATION_SIGMA_M ** 2
-            elif depth is not None and self.map.objects_at_pixel(view, u, v) == []:
-                surface = surface_point_at(view, u, v, depth, self._p['depth_radius_px'])
-                point, cov = surface if surface is not None else (None, None)
-            recognitions.append(Recognition(u, v, d.label, float(d.score), stamp, point, cov))
+        recognitions, bad = recognitions_from(chosen, self.map, view, stamp, vergence, depth,
+                                              self._p['depth_radius_px'])
+        for detail in bad:
+            self.input_health.refuse(topic, NON_FINITE, detail)
         placed = self.map.add_recognitions(recognitions, view)
         self.recognitions_received += len(recognitions)
         self.recognitions_placed += sum(p is not None for p in placed)
@@ -360,19 +336,9 @@ class ObjectMapNode(Node):
         pose = self._pose(CLUSTERS_TOPIC, msg.header)
         if pose is None:
             return
-        stamp = stamp_seconds(msg.header.stamp)
-        observations: list[GeometryObservation] = []
-        for det in msg.detections:
-            c, s = det.bbox.center, det.bbox.size
-            centre = np.array([c.position.x, c.position.y, c.position.z], np.float64)
-            quat = (c.orientation.x, c.orientation.y, c.orientation.z, c.orientation.w)
-            size = np.array([s.x, s.y, s.z], np.float64)
-            if not (np.isfinite(centre).all() and np.isfinite(size).all()
-                    and np.isfinite(quat).all() and np.linalg.norm(quat) > 1e-9):
-                self.input_health.refuse(topic, NON_FINITE, f'cluster {det.id!r}')
-                continue
-            observations.append(cluster_observation(pose, centre, rotation_matrix(quat),
-                                                    np.abs(size), stamp))
+        observations, bad = cluster_observations(msg, pose)
+        for detail in bad:
+            self.input_health.refuse(topic, NON_FINITE, detail)
         self.map.add_geometry(observations)
         self.input_health.accept(topic)
 
@@ -384,17 +350,9 @@ class ObjectMapNode(Node):
         pose = self._pose(CYLINDERS_TOPIC, msg.header)
         if pose is None:
             return
-        stamp = stamp_seconds(msg.header.stamp)
-        observations = []
-        for cyl in msg.cylinders:
-            centre = np.array([cyl.center.x, cyl.center.y, cyl.center.z], np.float64)
-            axis = np.array([cyl.axis.x, cyl.axis.y, cyl.axis.z], np.float64)
-            values = np.concatenate([centre, axis, [cyl.radius, cyl.height]])
-            if not np.isfinite(values).all() or np.linalg.norm(axis) < 1e-9:
-                self.input_health.refuse(topic, NON_FINITE, f'cylinder {cyl.id}')
-                continue
-            observations.append(cylinder_observation(pose, centre, axis, float(cyl.radius),
-                                                     float(cyl.height), stamp))
+        observations, bad = cylinder_observations(msg, pose)
+        for detail in bad:
+            self.input_health.refuse(topic, NON_FINITE, detail)
         self.map.add_geometry(observations)
         self.input_health.accept(topic)
 
@@ -414,10 +372,7 @@ class ObjectMapNode(Node):
         pose = self._pose(STEREO_TOPIC, msg.header)
         if pose is None:
             return
-        xyz = np.stack([cloud['x'], cloud['y'], cloud['z']], axis=1).astype(np.float64)
-        xyz = xyz[np.isfinite(xyz).all(axis=1)]
-        if len(xyz) > STEREO_MAX_POINTS:     # an even thinning keeps the surfaces
-            xyz = xyz[:: int(math.ceil(len(xyz) / STEREO_MAX_POINTS))]
+        xyz = finite_points(cloud, STEREO_MAX_POINTS)
         self._stereo = (stamp_seconds(msg.header.stamp), xyz @ pose[:3, :3].T + pose[:3, 3])
         self.input_health.accept(topic)
 
@@ -453,16 +408,10 @@ class ObjectMapNode(Node):
                                    self._fixation)
         if target is None:
             return
-        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
-                          motion=GazeCommand.MOTION_SACCADE, source=GAZE_SOURCE,
-                          priority=int(self._p['gaze_priority']),
-                          hold_time=float(self._p['dwell_s']))
-        cmd.header.stamp = self.get_clock().now().to_msg()
-        cmd.header.frame_id = self._p['map_frame'].strip('/')
         aim = self.looks.aim if self.looks.aim is not None else target.position
-        (cmd.fixation_point.x, cmd.fixation_point.y,
-         cmd.fixation_point.z) = (float(v) for v in aim)
-        self._gaze_pub.publish(cmd)
+        self._gaze_pub.publish(look_command(
+            aim, GAZE_SOURCE, int(self._p['gaze_priority']), float(self._p['dwell_s']),
+            self._p['map_frame'].strip('/'), self.get_clock().now().to_msg()))
         self._gaze_ours = False            # until /gaze/state says the look is served
 
     def _head_origin(self) -> np.ndarray:

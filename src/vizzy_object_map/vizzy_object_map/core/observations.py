@@ -7,6 +7,7 @@ input can know (section "Observations" of docs/vizzy_object_map.md).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Reversible
 
 import numpy as np
@@ -106,3 +107,13 @@ def fixation_at(states: Reversible[tuple[float, FloatArray | None, bool]], t: fl
 __all__ = ['CLUSTER_SIGMA_M', 'CLUSTER_SIGMA_SHARE', 'CYLINDER_SIGMA_M', 'box_extents',
            'cluster_observation', 'cylinder_extents', 'cylinder_observation', 'fixation_at',
            'surface_point_at', 'transform_point']
+
+
+def finite_points(cloud: NDArray[np.void], max_points: int) -> FloatArray:
+    """The finite (x, y, z) of a structured cloud as (N, 3), evenly thinned to at most
+    max_points (an even thinning keeps the surfaces)."""
+    xyz = np.stack([cloud['x'], cloud['y'], cloud['z']], axis=1).astype(np.float64)
+    xyz = xyz[np.isfinite(xyz).all(axis=1)]
+    if len(xyz) > max_points:
+        xyz = xyz[:: int(math.ceil(len(xyz) / max_points))]
+    return xyz
