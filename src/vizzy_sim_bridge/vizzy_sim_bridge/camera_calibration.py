@@ -234,6 +234,28 @@ def load_calibration(url: str, camera_name: str, width: int, height: int) -> Cal
 
 
 # ------------------------------------------------------------------ the tool
+def choose_calibration(param: str, url: str, computed: Calibration,
+                       log: Any) -> tuple[Calibration, str]:
+    """(calibration, source) a node publishes for parameter param = url: the file at url if one
+    is set and usable, source url; else computed, source 'computed' (with one error line on log
+    saying why the file is not used)."""
+    if not url:
+        return computed, 'computed'
+    try:
+        cal = load_calibration(url, computed.camera_name, computed.width, computed.height)
+    except CalibrationError as exc:
+        log.error(f'{param}: {exc}; publishing the calibration computed '
+                  f'from MuJoCo (fx {computed.k[0]:.3f} px)')
+        return computed, 'computed'
+    if cal.camera_name != computed.camera_name:   # as camera_info_manager: a warning
+        log.warning(f'{param}: the file is for camera {cal.camera_name!r}, '
+                    f'this is {computed.camera_name!r}; using it')
+    log.info(f'{param}: {cal.camera_name} calibration from {url} (fx '
+             f'{cal.k[0]:.3f} px; images rendered with fx '
+             f'{computed.k[0]:.3f} px)')
+    return cal, url
+
+
 def _sim_defaults() -> dict[str, Any]:
     from vizzy_sim_bridge.sim_node import PARAMETERS  # the sim's own defaults (imports MuJoCo)
     return {p.name: p.default for p in PARAMETERS}

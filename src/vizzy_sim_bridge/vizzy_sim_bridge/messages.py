@@ -1,12 +1,13 @@
 """What the simulated head sends that is built from its state rather than rendered: stamps,
-/tf's TransformStamped of the head's joints, the ground-truth objects as markers, and an
-object's image box (the ground truth of detections). sim_node.py publishes them."""
+/tf's TransformStamped of the head's joints, camera_info of a calibration, the ground-truth
+objects and walkers as markers, and an object's image box (the ground truth of detections, as
+active_vision_msgs/TrackArray for the walkers). sim_node.py publishes them."""
 
 from __future__ import annotations
 
 import array
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,10 +16,16 @@ from vizzy_vision.camera import project
 from vizzy_vision.frames import rotation_matrix
 from vizzy_vision.kinematics import Transform
 
+if TYPE_CHECKING:
+    from vizzy_sim_bridge.camera_calibration import Calibration
+
+CameraInfo = message('sensor_msgs/msg/CameraInfo')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 Point = message('geometry_msgs/msg/Point')
 TimeMsg = message('builtin_interfaces/msg/Time')
+Track = message('active_vision_msgs/msg/Track')
+TrackArray = message('active_vision_msgs/msg/TrackArray')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
 
 
@@ -48,6 +55,18 @@ def transform_messages(transforms: list[Transform], stamp: Any) -> list[Any]:
         rot.x, rot.y, rot.z, rot.w = (float(v) for v in t.rotation)
         out.append(msg)
     return out
+
+
+def camera_info(cal: Calibration, frame_id: str) -> Any:
+    """sensor_msgs/CameraInfo of a calibration, in frame frame_id (its stamp left to set)."""
+    info = CameraInfo(width=cal.width, height=cal.height,
+                      distortion_model=cal.distortion_model)
+    info.header.frame_id = frame_id
+    info.d = float_seq(cal.d)
+    info.k = np.asarray(cal.k, dtype=np.float64)
+    info.r = np.asarray(cal.r, dtype=np.float64)
+    info.p = np.asarray(cal.p, dtype=np.float64)
+    return info
 
 
 def fill_pose(pose: Any, position: Any, quaternion: Any) -> None:
@@ -119,3 +138,38 @@ def image_box(k: np.ndarray, camera_pose: np.ndarray, corners: np.ndarray, width
     if u0 >= u1 or v0 >= v1:
         return None
     return float(u0), float(v0), float(u1), float(v1)
+
+
+def pedestrian_markers(boxes: list[dict[str, Any]], stamp: Any) -> Any:
+    """MarkerArray of the walkers' 3D boxes (ns pedestrians) in base_link."""
+    markers = [Marker(action=Marker.DELETEALL)]
+    markers[0].header.frame_id, markers[0].header.stamp = 'base_link', stamp
+    for box in boxes:
+        m = Marker(ns='pedestrians', id=box['id'], type=Marker.CUBE, action=Marker.ADD,
+                   text=box['label'])
+        m.header.frame_id, m.header.stamp = 'base_link', stamp
+        fill_pose(m.pose, box['center'], box['orientation'])
+        m.scale.x, m.scale.y, m.scale.z = box['size']
+        m.color.r, m.color.g, m.color.b, m.color.a = 0.2, 0.8, 0.2, 0.5
+        markers.append(m)
+    return MarkerArray(markers=markers)
+
+
+def pedestrian_tracks(boxes: list[dict[str, Any]], k: np.ndarray, camera_pose: np.ndarray,
+                      width: int, height: int, stamp: Any, frame_id: str) -> Any:
+    """TrackArray of the walkers' boxes in one camera's image [px]; those out of view left out."""
+    tracks = []
+    for box in boxes:
+        corners = box.get('corners')
+        if corners is None:
+            corners = box_corners(box['center'], box['size'], box['orientation'])
+        bb = image_box(k, camera_pose, corners, width, height)
+        if bb is None:
+            continue
+        u0, v0, u1, v1 = bb
+        tracks.append(Track(id=box['id'], label=box['label'], center_u=(u0 + u1) / 2,
+                            center_v=(v0 + v1) / 2, width=u1 - u0, height=v1 - v0,
+                            scale=1.0))
+    msg = TrackArray(tracks=tracks)
+    msg.header.stamp, msg.header.frame_id = stamp, frame_id
+    return msg

@@ -49,28 +49,22 @@ A processed command (clamped or not) counts as accepted on that topic.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import threading
-import time
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from vizzy_runtime.convert import array_to_pointcloud2, numpy_to_image
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
-    Param,
     declare_parameters,
     guarded,
-    has_subscribers,
     main_for,
     publish_from_thread,
     replace_timer,
 )
 from vizzy_runtime.ros import (
-    ExternalShutdownException,
     Node,
     Parameter,
     QoSProfile,
@@ -83,32 +77,39 @@ from vizzy_sim_bridge import compressed
 from vizzy_sim_bridge.camera_calibration import (
     CAMERA_NAMES,
     Calibration,
-    CalibrationError,
-    load_calibration,
+    choose_calibration,
     sim_calibration,
 )
+from vizzy_sim_bridge.core.commands import command_problem
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
-from vizzy_sim_bridge.core.render import CameraRenderer, RendererUnavailable, select_backend
-from vizzy_sim_bridge.core.rgbd import DepthProjector, noisy_depth
-from vizzy_sim_bridge.core.scenes import SCENE_NAMES, SceneUnavailable, build_scene
+from vizzy_sim_bridge.core.render import RendererUnavailable, select_backend
+from vizzy_sim_bridge.core.rgbd import DepthProjector
+from vizzy_sim_bridge.core.scenes import SceneUnavailable, build_scene
 from vizzy_sim_bridge.core.urdf import head_urdf
 from vizzy_sim_bridge.messages import (  # noqa: F401 (box_corners, image_box: re-exported)
     box_corners,
-    fill_pose,
+    camera_info,
     float_seq,
     image_box,
     object_markers,
+    pedestrian_markers,
+    pedestrian_tracks,
     stamp_msg,
     transform_messages,
 )
+from vizzy_sim_bridge.parameters import (  # noqa: F401 (READ_ONLY, checks: re-exported)
+    PARAMETERS,
+    READ_ONLY,
+    check_parameter,
+    check_parameters,
+)
+from vizzy_sim_bridge.sim_loops import lockstep_loop, render_loop, start_rendering
 from vizzy_vision.camera import camera_matrix
 from vizzy_vision.kinematics import (
     BASELINE,
     CAMERA_FRAMES,
-    JOINT_LIMITS,
     JOINT_NAMES,
     RGBD_FRAME,
-    frames_in_base,
     joint_transforms,
     static_transforms,
     world_transform,
@@ -120,14 +121,9 @@ Clock = message('rosgraph_msgs/msg/Clock')
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
 JointState = message('sensor_msgs/msg/JointState')
-Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
-Point = message('geometry_msgs/msg/Point')
 TFMessage = message('tf2_msgs/msg/TFMessage')
-TimeMsg = message('builtin_interfaces/msg/Time')
-Track = message('active_vision_msgs/msg/Track')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
-TransformStamped = message('geometry_msgs/msg/TransformStamped')
 String = message('std_msgs/msg/String')
 
 EYES = ('left', 'right')
@@ -151,95 +147,6 @@ SENSOR_QOS = QoSProfile(depth=5)
 # destroy_node() waits at most this for the render thread's frame in flight (one stereo pair or
 # RGB-D frame, well under a second); whatever the thread publishes after it is dropped.
 RENDER_JOIN_TIMEOUT_S = 2.0
-
-# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
-PARAMETERS: tuple[Param, ...] = (
-    Param('scene', 'tabletop', 'Scene: ' + ', '.join(SCENE_NAMES) + ' (read-only).',
-          choices=tuple(SCENE_NAMES), read_only=True),
-    Param('seed', 0, 'Seed of the scene layout and of the depth noise, >= 0 (read-only).',
-          '[0, inf)', read_only=True),
-    Param('pedestrian_count', 4, 'Walkers in the pedestrians scene, in [1, 20] (read-only).',
-          '[1, 20]', read_only=True),
-    Param('rate_hz', 15.0, 'Rate of the stereo images and their camera_info [Hz], in '
-          '[0.1, 60].', '[0.1, 60]'),
-    Param('rgbd_rate_hz', 5.0, 'Rate of the RGB-D image, depth, points and camera_info [Hz], '
-          'in [0, 30]; 0 switches the RGB-D sensor off.', '[0, 30]'),
-    Param('joint_state_rate_hz', 100.0, 'Rate of /joint_states and /tf [Hz], in [1, 500].',
-          '[1, 500]'),
-    Param('width', 640, 'Eye camera image width [px] (read-only).', '[16, 4096]',
-          read_only=True),
-    Param('height', 480, 'Eye camera image height [px] (read-only).', '[16, 4096]',
-          read_only=True),
-    Param('horizontal_fov_deg', 85.4, 'Horizontal field of view of each eye camera [deg] '
-          '(read-only).', '[1, 170]', read_only=True),
-    Param('rgbd_width', 640, 'RGB-D image width [px] (read-only).', '[16, 4096]',
-          read_only=True),
-    Param('rgbd_height', 480, 'RGB-D image height [px] (read-only).', '[16, 4096]',
-          read_only=True),
-    Param('rgbd_horizontal_fov_deg', 58.0, 'Horizontal field of view of the RGB-D sensor [deg] '
-          '(read-only).', '[1, 170]', read_only=True),
-    Param('depth_noise_coefficient', 1.425e-3, 'Depth noise sigma_z = c z^2: c [1/m], in '
-          '[0, 0.05]; 0 = noise-free depth (Khoshelham & Elberink 2012: 1.425e-3).',
-          '[0, 0.05]'),
-    Param('rgbd_min_range_m', 0.5, 'Nearest valid depth [m], in [0, 10); nearer is NaN.',
-          '[0, 10)', constraints='below rgbd_max_range_m'),
-    Param('rgbd_max_range_m', 3.5, 'Farthest valid depth [m], in (0, 50]; farther is NaN.',
-          '(0, 50]', constraints='above rgbd_min_range_m'),
-    Param('initial_joint_positions', [0.0, 0.0, 0.0, 0.0, 0.0],
-          'Joint targets at start [rad], in the order ' + ', '.join(JOINT_NAMES) +
-          '; clamped into the joint limits (read-only).',
-          constraints=f'{len(JOINT_NAMES)} finite values', read_only=True),
-    Param('render_backend', 'auto', 'OpenGL for rendering: auto (EGL, else OSMesa), egl or '
-          'osmesa (read-only).', choices=('auto', 'egl', 'osmesa'), read_only=True),
-    Param('jpeg_quality', compressed.DEFAULT_JPEG_QUALITY, 'JPEG quality of the '
-          '<image>/compressed streams, in [1, 100] (image_transport\'s default: 95).',
-          '[1, 100]'),
-    *(Param(f'{cam}_camera_info_url', '', f'camera_info_manager URL of the {cam} camera\'s '
-            'calibration (camera_calibration_parsers YAML): file:///<path> or '
-            'package://<package>/<path>, ${NAME} = ' + CAMERA_NAMES[cam] + '. Published as its '
-            'camera_info instead of the one computed from MuJoCo; empty: the computed one '
-            '(read-only).', read_only=True)
-      for cam in ('left', 'right', 'rgbd')),
-    Param('ground_truth_rate_hz', 1.0, 'Rate of republishing /sim/ground_truth/objects [Hz], '
-          'in [0.01, 100].', '[0.01, 100]'),
-    Param('publish_clock', True,
-          'Publish /clock (simulated time starting at 0) and stamp messages with it '
-          '(read-only). The sim itself must run with use_sim_time false.', read_only=True),
-    Param('clock_rate_hz', 100.0, 'Rate of /clock [Hz], in [10, 1000] (read-only; slower, '
-          'sim-time timers would fire in bursts).', '[10, 1000]', read_only=True),
-    Param('lockstep', False,
-          'Advance simulated time only as far as asked on sim/step, one /clock tick at a time, '
-          'and say how far on sim/stepped (read-only). For benchmarks: whoever asks waits for '
-          'the graph to finish each tick, so results do not depend on the machine\'s speed. '
-          'Off: real time.', read_only=True),
-)
-READ_ONLY = frozenset(p.name for p in PARAMETERS if p.read_only)
-
-
-def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is: what the table's
-    ranges and choices cannot express."""
-    if name == 'initial_joint_positions':
-        if len(value) != len(JOINT_NAMES):
-            return f'initial_joint_positions needs {len(JOINT_NAMES)} values, got {len(value)}'
-        if not all(math.isfinite(v) for v in value):
-            return f'initial_joint_positions must be finite, got {list(value)}'
-    return None
-
-
-def check_parameters(values: dict[str, Any]) -> str | None:
-    """What is wrong with the parameters taken together, or None."""
-    if values['rgbd_min_range_m'] >= values['rgbd_max_range_m']:
-        return 'rgbd_min_range_m must be < rgbd_max_range_m'
-    return None
-
-
-def _next_due(due: float, t: float, rate_hz: float) -> float:
-    """The next sim time a periodic output is due after it went out at t (due was its slot):
-    the phase is kept unless it fell a whole period behind."""
-    period = 1.0 / rate_hz
-    nxt = due + period
-    return nxt if nxt > t else t + period
 
 
 class SimNode(Node):
@@ -294,7 +201,7 @@ class SimNode(Node):
         frames = {'left': CAMERA_FRAMES['left'], 'right': CAMERA_FRAMES['right'],
                   'rgbd': RGBD_FRAME}
         self.calibration_sources: dict[str, str] = {}   # camera -> 'computed' or the URL
-        self._info = {cam: self._camera_info(self._calibration(cam, computed[cam]), frames[cam])
+        self._info = {cam: camera_info(self._calibration(cam, computed[cam]), frames[cam])
                       for cam in computed}
         self.jpeg_encodes = 0                   # <image>/compressed frames encoded
         self._projector = DepthProjector(self._k_rgbd, rgbd.width, rgbd.height)
@@ -354,10 +261,10 @@ class SimNode(Node):
             self._stepped_pub = self.create_publisher(Clock, STEPPED_TOPIC, STEP_QOS)
             self._step_sub = self.create_subscription(Clock, STEP_TOPIC, guarded(
                 self, 'failed on a step', self._on_step), STEP_QOS)
-            self._start_rendering(self._lockstep_loop)
+            start_rendering(self, lambda r: lockstep_loop(self, r))
         else:
             self._sim.start()
-            self._start_rendering(self._render_loop)
+            start_rendering(self, lambda r: render_loop(self, r))
             self._joint_timer = self.create_timer(1.0 / float(p['joint_state_rate_hz']), guarded(
                 self, 'joint state publishing failed', self._on_joint_tick))
             self._gt_timer = self.create_timer(1.0 / float(p['ground_truth_rate_hz']), guarded(
@@ -385,40 +292,12 @@ class SimNode(Node):
             return stamp_msg(t)
         return self.get_clock().now().to_msg()
 
-
     def _calibration(self, cam: str, computed: Calibration) -> Calibration:
-        """The file at <cam>_camera_info_url if one is set and usable, else computed (with one
-        error line saying why the file is not used)."""
-        param = f'{cam}_camera_info_url'
-        url = str(self._p[param])
-        self.calibration_sources[cam] = 'computed'
-        if not url:
-            return computed
-        try:
-            cal = load_calibration(url, computed.camera_name, computed.width, computed.height)
-        except CalibrationError as exc:
-            self.get_logger().error(f'{param}: {exc}; publishing the calibration computed '
-                                    f'from MuJoCo (fx {computed.k[0]:.3f} px)')
-            return computed
-        if cal.camera_name != computed.camera_name:   # as camera_info_manager: a warning
-            self.get_logger().warning(f'{param}: the file is for camera {cal.camera_name!r}, '
-                                      f'this is {computed.camera_name!r}; using it')
-        self.get_logger().info(f'{param}: {cal.camera_name} calibration from {url} (fx '
-                               f'{cal.k[0]:.3f} px; images rendered with fx '
-                               f'{computed.k[0]:.3f} px)')
-        self.calibration_sources[cam] = url
+        """The file at <cam>_camera_info_url if one is set and usable, else computed."""
+        cal, self.calibration_sources[cam] = choose_calibration(
+            f'{cam}_camera_info_url', str(self._p[f'{cam}_camera_info_url']), computed,
+            self.get_logger())
         return cal
-
-    @staticmethod
-    def _camera_info(cal: Calibration, frame_id: str) -> Any:
-        info = CameraInfo(width=cal.width, height=cal.height,
-                          distortion_model=cal.distortion_model)
-        info.header.frame_id = frame_id
-        info.d = float_seq(cal.d)
-        info.k = np.asarray(cal.k, dtype=np.float64)
-        info.r = np.asarray(cal.r, dtype=np.float64)
-        info.p = np.asarray(cal.p, dtype=np.float64)
-        return info
 
     def _compressed(self, image: np.ndarray, header: Any) -> Any:
         self.jpeg_encodes += 1
@@ -442,21 +321,10 @@ class SimNode(Node):
         joints.position = float_seq(position)
         joints.velocity = float_seq(velocity)
         joints.effort = float_seq(effort)
-        # from the joint timer or the render thread (see _render_loop)
+        # from the joint timer or the render thread (see sim_loops.render_loop)
         publish_from_thread(self, self._joint_pub, joints)
         publish_from_thread(self, self._tf_pub, TFMessage(transforms=transform_messages(
             joint_transforms(position.tolist()), stamp)))
-
-    def _snapshot(self) -> tuple[float, np.ndarray]:
-        """Copy the physics state for rendering, pose the walkers; (sim time, joint positions)."""
-        d = self._render_data
-        t = self._sim.snapshot_into(d)
-        self._scene.update(self._model, d, t)
-        mujoco.mj_forward(self._model, d)
-        q = d.qpos[self._sim.qpos_adr].copy()
-        self._publish_joints(t, q, d.qvel[self._sim.dof_adr].copy(),
-                             d.actuator_force[self._sim.act_ids].copy())
-        return t, q
 
     # ------------------------------------------------------------------ timers
     def _on_clock(self) -> None:
@@ -467,66 +335,6 @@ class SimNode(Node):
         s = self._sim.sample()
         self._publish_joints(s.time, s.position, s.velocity, s.effort)
 
-    def _start_rendering(self, loop: Any) -> None:
-        """The render thread: its own GL context, running loop(renderer): _render_loop, paced by
-        rate_hz and rgbd_rate_hz (the executor stays free for joint commands, /joint_states, /tf
-        and /clock), or _lockstep_loop."""
-        ready = threading.Event()
-        failure: list[BaseException] = []
-
-        def run() -> None:
-            try:
-                renderer = CameraRenderer(self._model, max(self._eye.width, self._rgbd.width),
-                                          max(self._eye.height, self._rgbd.height),
-                                          self._backend)
-            except BaseException as exc:  # reported by the constructor, in its thread
-                failure.append(exc)
-                ready.set()
-                return
-            ready.set()
-            try:
-                loop(renderer)
-            finally:
-                renderer.close()
-
-        self._render_thread = threading.Thread(target=run, name='vizzy_render', daemon=True)
-        self._render_thread.start()
-        ready.wait()
-        if failure:
-            self._sim.stop()
-            raise failure[0]
-
-    def _render_loop(self, renderer: CameraRenderer) -> None:
-        """Renders and publishes (publish_from_thread) until destroy_node() sets _stop, or
-        until the context goes away under it (Ctrl-C under real rclpy): then it ends quietly."""
-        self._renderer = renderer
-        due = {'stereo': time.monotonic(), 'rgbd': time.monotonic()}
-        work = {'stereo': self._on_render, 'rgbd': self._on_rgbd}
-        last_error = {'stereo': -math.inf, 'rgbd': -math.inf}
-        while not self._stop.is_set():
-            rates = {'stereo': float(self._p['rate_hz']), 'rgbd': float(self._p['rgbd_rate_hz'])}
-            now = time.monotonic()
-            for key in ('stereo', 'rgbd'):
-                if rates[key] <= 0.0:
-                    due[key] = now + 0.1
-                    continue
-                if now >= due[key]:
-                    period = 1.0 / rates[key]
-                    # keep the phase; when late by more than a period, start again from now
-                    due[key] = due[key] + period if now - due[key] < period else now + period
-                    try:
-                        work[key]()
-                    except ExternalShutdownException:
-                        return
-                    except Exception as exc:  # one bad frame never stops the rendering
-                        if now - last_error[key] > 5.0:
-                            last_error[key] = now
-                            self.get_logger().error(
-                                f'{key} rendering failed: {type(exc).__name__}: {exc}')
-            wait = min(due.values()) - time.monotonic()
-            if wait > 0:
-                self._stop.wait(wait)
-
     def _on_step(self, msg: Any) -> None:
         """Lockstep: advance until msg.clock (a request for a past time is done already)."""
         t = msg.clock.sec + 1e-9 * msg.clock.nanosec
@@ -535,145 +343,18 @@ class SimNode(Node):
                 self._step_target = t
                 self._step_cond.notify_all()
 
-    def _lockstep_loop(self, renderer: CameraRenderer) -> None:
-        """Lockstep: per /clock tick, step the physics, then publish /joint_states and /tf,
-        /clock, the images and clouds due (on the sim-time schedule of their rates) and the
-        ground truth; after the last tick asked for, sim/stepped. Ends like _render_loop."""
-        self._renderer = renderer
-        sim = self._sim
-        tick = 1.0 / float(self._p['clock_rate_hz'])
-        substeps = max(1, int(round(tick / sim.dt)))
-        due = {'joints': 0.0, 'stereo': 0.0, 'rgbd': 0.0, 'gt': 0.0}
-        work = {'stereo': self._on_render, 'rgbd': self._on_rgbd,
-                'gt': self._publish_ground_truth}
-        eps = 0.25 * sim.dt
-        try:
-            while not self._stop.is_set():
-                with self._step_cond:
-                    if self._step_target <= sim.time + eps:
-                        self._step_cond.wait(0.1)
-                        continue
-                    target = self._step_target
-                while sim.time + eps < target and not self._stop.is_set():
-                    sim.step(substeps)
-                    self.ticks += 1
-                    t = sim.time
-                    rates = {'joints': float(self._p['joint_state_rate_hz']),
-                             'stereo': float(self._p['rate_hz']),
-                             'rgbd': float(self._p['rgbd_rate_hz']),
-                             'gt': float(self._p['ground_truth_rate_hz'])}
-                    if t + eps >= due['joints']:
-                        due['joints'] = _next_due(due['joints'], t, rates['joints'])
-                        s = sim.sample()
-                        self._publish_joints(s.time, s.position, s.velocity, s.effort)
-                    if self._clock_pub is not None:
-                        publish_from_thread(self, self._clock_pub, Clock(clock=self._now(t)))
-                    for key in ('stereo', 'rgbd', 'gt'):
-                        if rates[key] > 0.0 and t + eps >= due[key]:
-                            due[key] = _next_due(due[key], t, rates[key])
-                            work[key]()
-                publish_from_thread(self, self._stepped_pub, Clock(clock=self._now(sim.time)))
-        except ExternalShutdownException:
-            return
-
-    def _on_render(self) -> None:
-        t, q = self._snapshot()
-        stamp = self._now(t)
-        for e in EYES:
-            rgb, _ = self._renderer.render(self._render_data, self._cam_ids[e],
-                                           width=self._eye.width, height=self._eye.height)
-            header = Header(stamp=stamp, frame_id=CAMERA_FRAMES[e])
-            publish_from_thread(self, self._image_pubs[e], numpy_to_image(rgb, 'rgb8', header))
-            if has_subscribers(self._compressed_pubs[e]):    # a JPEG only for a reader
-                publish_from_thread(self, self._compressed_pubs[e], self._compressed(rgb, header))
-            info = self._info[e]
-            info.header.stamp = stamp
-            publish_from_thread(self, self._info_pubs[e], info)
-        if self._crowd:
-            self._publish_pedestrians(q, stamp)
-
-    def _on_rgbd(self) -> None:
-        t, _ = self._snapshot()
-        stamp = self._now(t)
-        rgb, depth = self._renderer.render(self._render_data, self._rgbd_cam, depth=True,
-                                           width=self._rgbd.width, height=self._rgbd.height)
-        assert depth is not None                # asked for (depth=True)
-        coeff = float(self._p['depth_noise_coefficient'])
-        z = noisy_depth(depth, self._noise_rng if coeff > 0 else None, coeff,
-                        float(self._p['rgbd_min_range_m']), float(self._p['rgbd_max_range_m']))
-        header = Header(stamp=stamp, frame_id=RGBD_FRAME)
-        # built only for readers: the depth image is 1.2 MB, the organized cloud 4.9 MB
-        for pub, make in ((self._rgbd_image_pub, lambda: numpy_to_image(rgb, 'rgb8', header)),
-                          (self._rgbd_compressed_pub, lambda: self._compressed(rgb, header)),
-                          (self._rgbd_depth_pub, lambda: numpy_to_image(z, '32FC1', header)),
-                          (self._rgbd_points_pub, lambda: array_to_pointcloud2(
-                              self._projector.cloud(z, rgb), header, is_dense=False))):
-            if has_subscribers(pub):
-                publish_from_thread(self, pub, make())
-        info = self._info['rgbd']
-        info.header.stamp = stamp
-        publish_from_thread(self, self._rgbd_info_pub, info)
-
     def _publish_ground_truth(self) -> None:
         self._gt_objects_pub.publish(object_markers(self._scene.objects,
                                                     self._now(self._sim.time)))
 
-    def _publish_pedestrians(self, q: np.ndarray, stamp: Any) -> None:
-        boxes = self._scene.moving_ground_truth(self._model, self._render_data)
-        markers = [Marker(action=Marker.DELETEALL)]
-        markers[0].header.frame_id, markers[0].header.stamp = 'base_link', stamp
-        for box in boxes:
-            m = Marker(ns='pedestrians', id=box['id'], type=Marker.CUBE, action=Marker.ADD,
-                       text=box['label'])
-            m.header.frame_id, m.header.stamp = 'base_link', stamp
-            fill_pose(m.pose, box['center'], box['orientation'])
-            m.scale.x, m.scale.y, m.scale.z = box['size']
-            m.color.r, m.color.g, m.color.b, m.color.a = 0.2, 0.8, 0.2, 0.5
-            markers.append(m)
-        publish_from_thread(self, self._gt_people_pub, MarkerArray(markers=markers))
-        poses = frames_in_base(q.tolist())
-        for e in EYES:
-            tracks = []
-            for box in boxes:
-                corners = box.get('corners')
-                if corners is None:
-                    corners = box_corners(box['center'], box['size'], box['orientation'])
-                bb = image_box(self._k_eye, poses[CAMERA_FRAMES[e]], corners,
-                               self._eye.width, self._eye.height)
-                if bb is None:
-                    continue
-                u0, v0, u1, v1 = bb
-                tracks.append(Track(id=box['id'], label=box['label'], center_u=(u0 + u1) / 2,
-                                    center_v=(v0 + v1) / 2, width=u1 - u0, height=v1 - v0,
-                                    scale=1.0))
-            msg = TrackArray(tracks=tracks)
-            msg.header.stamp, msg.header.frame_id = stamp, CAMERA_FRAMES[e]
-            publish_from_thread(self, self._gt_boxes_pubs[e], msg)
-
     # ------------------------------------------------------------------ commands
-    @staticmethod
-    def _command_problem(names: list[str], positions: list[float]) -> tuple[str, str] | None:
-        """(reason, detail) for a joint command to reject whole, or None if it is usable."""
-        if not names:
-            return 'no joint names', f'{len(positions)} positions'
-        if len(names) != len(positions):
-            return 'length mismatch', f'{len(names)} names but {len(positions)} positions'
-        unknown = [n for n in names if n not in JOINT_LIMITS]
-        if unknown:
-            return 'unknown joint', f'{unknown}; known: {", ".join(JOINT_NAMES)}'
-        if len(set(names)) != len(names):
-            return 'repeated joint', f'in {names}'
-        bad = [f'{n}={v}' for n, v in zip(names, positions, strict=True) if not math.isfinite(v)]
-        if bad:
-            return 'non-finite target', ', '.join(bad)
-        return None
 
     def _on_joint_command(self, msg: Any) -> None:
         topic = self._command_topic
         names = list(msg.name)
         positions = [float(v) for v in msg.position]
         velocities = [float(v) for v in msg.velocity]
-        problem = self._command_problem(names, positions)
+        problem = command_problem(names, positions)
         if problem is not None:
             self.input_health.refuse(topic, *problem)   # logged first time, then throttled
             return
