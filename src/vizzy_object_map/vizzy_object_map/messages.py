@@ -21,7 +21,7 @@ from vizzy_object_map.core.observations import (
     cylinder_observation,
     surface_point_at,
 )
-from vizzy_runtime.convert import stamp_seconds
+from vizzy_runtime.convert import stamp_msg, stamp_seconds
 from vizzy_runtime.ros import message
 from vizzy_vision.frames import rotation_matrix
 
@@ -32,16 +32,10 @@ Detection3DArray = message('vision_msgs/msg/Detection3DArray')
 ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
-TimeMsg = message('builtin_interfaces/msg/Time')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 
 FIXATION_PIXEL_PX = 3.0             # a detection this near the principal point is the gaze's own
 FIXATION_SIGMA_M = 0.01             # the vergence point's uncertainty as an object's position
-
-
-def stamp_msg(t: float) -> Any:
-    sec = math.floor(t)
-    return TimeMsg(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
 
 def _covariance6(cov3: np.ndarray) -> list[float]:

@@ -7,6 +7,7 @@ They work on the bundled runtime's messages (data is a numpy array) and on real 
 from __future__ import annotations
 
 import array
+import math
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -34,6 +35,13 @@ class ConversionError(ValueError):
 def stamp_seconds(stamp: Any) -> float:
     """A builtin_interfaces/Time (a header's stamp) in seconds."""
     return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+
+
+def stamp_msg(t: float) -> Any:
+    """builtin_interfaces/Time of t [s] (stamp_seconds' inverse)."""
+    sec = math.floor(t)
+    return message('builtin_interfaces/msg/Time')(
+        sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
 
 # A focal length [px] outside these is no camera: 1e-300 passed a "> 0" check and put a saccade
