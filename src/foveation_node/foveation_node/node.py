@@ -45,19 +45,11 @@ publishes
 
   /foveation/detections        active_vision_msgs/FoveatedDetectionArray, one per pass
                                (pass_index 0, then 1), the frame's header
-  /foveation/detections_2d     vision_msgs/Detection2DArray (reliable, depth 10), the frame's
-                               header (on the array and on each detection): one Detection2D per
-                               pass-2 detection, bbox in full-resolution pixels of the frame
-                               (center = box centre ((x0+x1)/2, (y0+y1)/2), theta 0, size_x/y =
-                               x1-x0+1, y1-y0+1 for inclusive pixel bounds x0..x1, y0..y1; see
-                               core.detections_2d), results = at most top_k
-                               ObjectHypothesisWithPose: its own label (class_id = the label
-                               string) and score first, then the other classes of the pass-2 image
-                               it was found in by decreasing probability (pose unset); id empty
+  /foveation/detections_2d     vision_msgs/Detection2DArray (reliable, depth 10): one Detection2D
+                               per pass-2 detection (messages.detection_2d_array), the frame's
+                               header; results at most top_k ObjectHypothesisWithPose
   /foveation/overlay           sensor_msgs/Image rgb8 (if publish_overlay), the frame foveated at
-                               its fixation with both passes' boxes, labels and scores (one colour
-                               per pass), the fixation and the fovea (radius f0), a legend
-                               (core.overlay), the frame's header
+                               its fixation with both passes' boxes (core.overlay), its header
 
 and, with saccades_enabled, a GazeCommand on /gaze/command (MODE_FIXATION_POINT,
 MOTION_SACCADE, source 'foveation', priority 30, hold_time saccade_hold_time_s) toward the
@@ -65,37 +57,24 @@ best pass-2 object: its box centre back-projected through /vizzy/left/camera_inf
 saccade_distance_m along the ray, in the frame's frame_id (the optical frame). No command while
 in a saccade, for a frame taken before the last saccade began, within saccade_min_interval_s of
 the previous one, for a score below saccade_min_score or a box centre within
-saccade_min_offset_px of the principal point. model_path / labels_path: a TorchScript file and
-its labels (package://foveation_node/... means inside the installed package; an empty
-model_path disables recognition); a path that is no file is refused like any bad parameter value
-(at start-up: one line and exit 2); a file that does not load is logged and recognition stays off.
-The default model (fovea_cnn, a window model: it sees the 160 px window around each pass's
-fixation) knows the simulator's 7 object classes and 'background' (the reject class,
-core.recognition.BACKGROUND_LABEL: never published as a detection, localised or saccaded to; a
-pass-2 label must beat it on its own image, so a view of a wall gives no pass-2 detection); for
-real scenes, point model_path / labels_path at an ImageNet network written by
-export_imagenet_classifier (EfficientNet-Lite).
+saccade_min_offset_px of the principal point. model_path / labels_path
+(a TorchScript classifier and its labels; the default window model): see parameters.py.
 Algorithms live in foveation_node.core; this module only wires them to topics and parameters.
 """
 
 from __future__ import annotations
 
-import array
-import importlib.util
 import math
 import time
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
-from foveation_node.core.detections_2d import box_centre_size, ranked_hypotheses
-from foveation_node.core.foveation import DEFAULT_F0, DEFAULT_LEVELS, PYRAMID_SIGMA_1, Foveator
-from foveation_node.core.overlay import Box, draw_overlay
+from foveation_node.core.fixation import fixation_for, unfoveated
+from foveation_node.core.foveation import PYRAMID_SIGMA_1, Foveator  # noqa: F401 (tests)
+from foveation_node.core.overlay import draw_overlay
 from foveation_node.core.recognition import (
-    DEFAULT_THRESHOLD,
-    DEFAULT_TOP_K,
     Classifier,
     Detection,
     ModelError,
@@ -104,28 +83,46 @@ from foveation_node.core.recognition import (
     saccade_target,
     two_pass,
 )
-from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reasons are this
-    # node's counter keys too)
-    EMPTY_IMAGE,
-    IMAGE_REASONS,
-    SHORT_DATA,
-    SHORT_STEP,
-    TOO_LARGE,
-    UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING,
-    ConversionError,
-    image_refusal,
-    image_to_numpy,
-    numpy_to_image,
-    stamp_seconds,
+from foveation_node.messages import (
+    ENCODINGS,
+    CompressedImage,
+    Detection2DArray,
+    FoveatedDetectionArray,
+    GazeCommand,
+    camera_k,
+    compressed_image,
+    detection_2d_array,
+    detection_array,
+    encode_jpeg,
+    image_problem,
+    k_text,
+    overlay_boxes,
+    saccade_command,
 )
-from vizzy_runtime.convert import (
-    camera_k as usable_k,
+from foveation_node.parameters import (  # noqa: F401 (re-exported: tests and scripts use them)
+    CAMERA_INFO_TOPIC,
+    COMPRESSED_TOPIC,
+    DEFAULT_LABELS,
+    DEFAULT_MODEL,
+    DETECTIONS_2D_TOPIC,
+    DETECTIONS_TOPIC,
+    FOVEATOR_PARAMETERS,
+    GAZE_COMMAND_TOPIC,
+    GAZE_PRIORITY,
+    GAZE_SOURCE,
+    GAZE_STATE_TOPIC,
+    INPUT_TOPIC,
+    MODEL_PARAMETERS,
+    OUTPUT_TOPIC,
+    OVERLAY_TOPIC,
+    PARAMETERS,
+    check_parameter,
+    resolve_path,
 )
+from vizzy_runtime.convert import IMAGE_REASONS, image_to_numpy, numpy_to_image, stamp_seconds  # noqa: F401 (IMAGE_REASONS re-exported)
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
-    Param,
     declare_parameters,
     guarded,
     has_subscribers,
@@ -133,39 +130,14 @@ from vizzy_runtime.node_tools import (
     publish_from_thread,
 )
 from vizzy_runtime.rate_gate import RateGate
-from vizzy_runtime.ros import USING_REAL_ROS, Node, message, qos_profile_sensor_data
+from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_vision.image_checks import check_fixation
 from vizzy_vision.rays import back_project
 
 Image = message('sensor_msgs/msg/Image')
-CompressedImage = message('sensor_msgs/msg/CompressedImage')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 GazeState = message('active_vision_msgs/msg/GazeState')
-GazeCommand = message('active_vision_msgs/msg/GazeCommand')
-FoveatedDetection = message('active_vision_msgs/msg/FoveatedDetection')
-FoveatedDetectionArray = message('active_vision_msgs/msg/FoveatedDetectionArray')
-Detection2D = message('vision_msgs/msg/Detection2D')
-Detection2DArray = message('vision_msgs/msg/Detection2DArray')
-ObjectHypothesisWithPose = message('vision_msgs/msg/ObjectHypothesisWithPose')
 
-# Relative names: the graph remaps the generic inputs (image_raw:=vizzy/left/image_raw, ...) and
-# the node's namespace places everything; logs print the resolved names.
-INPUT_TOPIC = 'image_raw'
-CAMERA_INFO_TOPIC = 'camera_info'
-GAZE_STATE_TOPIC = 'gaze/state'
-OUTPUT_TOPIC = '~/image'
-COMPRESSED_TOPIC = '~/image/compressed'
-DETECTIONS_TOPIC = '~/detections'
-DETECTIONS_2D_TOPIC = '~/detections_2d'
-OVERLAY_TOPIC = '~/overlay'
-GAZE_COMMAND_TOPIC = 'gaze/command'
-GAZE_SOURCE = 'foveation'
-GAZE_PRIORITY = 30          # saccades: above stereo_ses (20) and mot_planner (10)
-# the window model (sees the 160 px around each pass's fixation; docs/foveation.md, "The window
-# model"); the whole-frame model foveation_cnn.pt stays beside it
-DEFAULT_MODEL = 'package://foveation_node/models/fovea_cnn.pt'
-DEFAULT_LABELS = 'package://foveation_node/models/fovea_cnn.labels'
-ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 FIXATION_OUTSIDE = 'fixation outside image'
 TOO_SMALL_FOR_LEVELS = 'too small for levels'
@@ -175,169 +147,6 @@ IN_SACCADE = 'in saccade'        # held, not refused: saccadic suppression
 OUTPUT_STALL_S = 3.0
 BANDWIDTH_LOG_PERIOD_S = 10.0
 WARN_PERIOD_S = 5.0
-MAX_LEVELS = 10
-
-# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
-PARAMETERS: tuple[Param, ...] = (
-    Param('levels', DEFAULT_LEVELS,
-          f'Number of Laplacian pyramid levels K, in [1, {MAX_LEVELS}] (the image needs at '
-          'least 2^K px a side).', f'[1, {MAX_LEVELS}]'),
-    Param('f0', DEFAULT_F0,
-          'Fovea size f_0 [px] (level-k kernel size f_k = 2^k f_0), in (0, 1e5].', '(0, 1e5]'),
-    Param('sigma_1', PYRAMID_SIGMA_1,
-          f'Gaussian sigma of pyramid level 1 [px], in [{PYRAMID_SIGMA_1:.4f}, 64] (the '
-          'subsampled pyramid cannot realise less).', f'[{PYRAMID_SIGMA_1!r}, 64]',
-          constraints='the lower bound is exact (no 1e-6 edge tolerance)'),
-    Param('fixation_u', -1.0, 'Fixation column [px], in [-16384, 16384] (max_width\'s '
-          'bound); negative: the image centre.', '[-16384, 16384]'),
-    Param('fixation_v', -1.0, 'Fixation row [px], in [-16384, 16384] (max_height\'s '
-          'bound); negative: the image centre.', '[-16384, 16384]'),
-    Param('space_variant', True,
-          'Foveate (thesis chapter 2). False: the uniform-resolution baseline: the published '
-          'image and recognition use the unfoveated frame (a window model: every window of a '
-          'grid over it, see uniform_stride_px; bench/active_perception.py\'s uniform '
-          'configuration).'),
-    Param('uniform_stride_px', 40,
-          'With space_variant false and a window model: the stride [px] of the grid of windows '
-          'recognised over the whole frame (the uniform baseline), in [8, 1024].', '[8, 1024]'),
-    Param('follow_gaze', False,
-          f'Fixate the principal point of {CAMERA_INFO_TOPIC} (where the gaze fixation point of '
-          f'{GAZE_STATE_TOPIC} projects) instead of fixation_u/v.'),
-    Param('suppress_during_saccades', True,
-          f'Drop frames while {GAZE_STATE_TOPIC} says in_saccade (saccadic suppression).'),
-    Param('jpeg_quality', 90, f'JPEG quality of {COMPRESSED_TOPIC}, in [1, 100].', '[1, 100]'),
-    Param('publish_overlay', True, f'Publish each recognised frame, foveated, with both passes\' '
-          f'boxes, the fixation and the fovea drawn on it, on {OVERLAY_TOPIC}.'),
-    Param('max_width', 4096, 'Widest accepted input image [px], in [1, 16384]; wider are '
-          'dropped.', '[1, 16384]'),
-    Param('max_height', 4096, 'Tallest accepted input image [px], in [1, 16384]; taller are '
-          'dropped.', '[1, 16384]'),
-    Param('model_path', DEFAULT_MODEL,
-          'TorchScript classifier (preprocessing from the .json beside it, else ImageNet '
-          '227x227); package://<pkg>/<path> is inside an installed package; empty: no '
-          'recognition.'),
-    Param('labels_path', DEFAULT_LABELS, 'Class labels of model_path, one per line.'),
-    Param('saliency_threshold', DEFAULT_THRESHOLD,
-          'Saliency mask threshold th (fraction of the map maximum), in (0, 1].', '(0, 1]'),
-    Param('top_k', DEFAULT_TOP_K, 'Classes localised per pass (top-k), in [1, 100].',
-          '[1, 100]'),
-    Param('recognition_rate_hz', 2.0,
-          'Most recognitions (two passes) started per second, in [0.01, 100]; the newest frame '
-          'wins.', '[0.01, 100]'),
-    Param('recognition_threads', 1, 'Torch CPU threads for recognition, in [1, 64].',
-          '[1, 64]'),
-    Param('saccades_enabled', True,
-          f'Send saccades to the best detected object on {GAZE_COMMAND_TOPIC} (priority '
-          f'{GAZE_PRIORITY}).'),
-    Param('saccade_hold_time_s', 1.0, 'hold_time of the saccade GazeCommands [s], in [0, 60].',
-          '[0, 60]'),
-    Param('saccade_min_interval_s', 2.0, 'Least time between two saccades [s], in [0, 600].',
-          '[0, 600]'),
-    Param('saccade_distance_m', 1.0,
-          'Distance along the pixel ray of the fixation point sent [m], in [0.1, 20].',
-          '[0.1, 20]'),
-    Param('saccade_min_score', 0.3, 'Least class probability worth a saccade, in [0, 1].',
-          '[0, 1]'),
-    Param('saccade_min_offset_px', 20.0,
-          'No saccade to a box centre this near the principal point [px], in [0, 10000].',
-          '[0, 10000]'),
-)
-# Parameters whose change needs a new Foveator.
-FOVEATOR_PARAMETERS = ('levels', 'f0', 'sigma_1')
-MODEL_PARAMETERS = ('model_path', 'labels_path', 'recognition_threads')
-
-
-def resolve_path(path: str) -> Path:
-    """A file path; package://<pkg>/<rest> is <rest> inside Python package <pkg>'s directory."""
-    if path.startswith('package://'):
-        pkg, _, rest = path[len('package://'):].partition('/')
-        spec = importlib.util.find_spec(pkg) if pkg else None
-        if spec is None or not spec.submodule_search_locations:
-            raise ModelError(f'{path}: no installed package {pkg!r}')
-        return Path(list(spec.submodule_search_locations)[0]) / rest
-    return Path(path).expanduser()
-
-
-def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is: the rules the table's
-    ranges cannot express (types and ranges are the descriptors', see PARAMETERS)."""
-    if name == 'sigma_1' and value < PYRAMID_SIGMA_1 - 1e-9:
-        # the Foveator's own floor, without the range's 1e-6 relative edge tolerance
-        return (f'sigma_1 must be at least {PYRAMID_SIGMA_1:.4f} px (a subsampled pyramid '
-                f'realises no less), got {value}')
-    if name in ('fixation_u', 'fixation_v') and not math.isfinite(value):
-        return f'{name} must be finite, got {value}'
-    if name in ('model_path', 'labels_path') and value:
-        try:
-            path = resolve_path(value)
-        except ModelError as exc:
-            return str(exc)
-        if not path.is_file():
-            return f'no such file {path}'
-    return None
-
-
-def image_problem(msg: Any, max_width: int, max_height: int) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
-    IMAGE_REASONS, a counter key)."""
-    return image_refusal(msg, dict.fromkeys(ENCODINGS, 3), max_size=(max_width, max_height))
-
-
-def _k_text(k: Any) -> str:
-    return 'K [' + ', '.join(f'{float(v):g}' for v in k) + ']'
-
-
-def camera_k(msg: Any) -> tuple[float, ...] | None:
-    """The 9 values of a CameraInfo's K if usable (vizzy_runtime.convert.camera_k), else None."""
-    k = usable_k(msg)
-    return None if k is None else tuple(k.ravel().tolist())
-
-
-def fixation_for(width: int, height: int, u: float, v: float) -> tuple[float, float]:
-    """The fixation (u0, v0) for a width x height image: a negative coordinate is the centre.
-
-    Raises ValueError if the result lies outside the image.
-    """
-    u0 = (width - 1) / 2.0 if u < 0 else float(u)
-    v0 = (height - 1) / 2.0 if v < 0 else float(v)
-    return check_fixation((u0, v0), width, height)
-
-
-def _unfoveated(image: np.ndarray, fixation: tuple[float, float]) -> np.ndarray:
-    """The uniform-resolution sensor: the frame as it is, wherever the fixation."""
-    return image
-
-
-def encode_jpeg(image: np.ndarray, encoding: str, quality: int) -> bytes:
-    """JPEG bytes of an rgb8/bgr8 image (cv2 expects BGR; the file holds the true colours)."""
-    bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if encoding == 'rgb8' else image
-    ok, buf = cv2.imencode('.jpg', bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
-    if not ok:
-        raise ValueError('cv2.imencode failed to encode a JPEG')
-    return buf.tobytes()
-
-
-def detection_2d_array(header: Any, detections: list[Detection], probs_second: np.ndarray,
-                       labels: list[str], top_k: int) -> Any:
-    """The vision_msgs/Detection2DArray of pass-2 detections (TwoPassResult.second, with their
-    probs_second): one Detection2D each, header on the array and on each detection, the box as
-    centre and size (core.detections_2d.box_centre_size), results the ranked hypotheses
-    (core.detections_2d.ranked_hypotheses, at most top_k), id empty."""
-    out = Detection2DArray()
-    out.header = header
-    for d in detections:
-        det = Detection2D()
-        det.header = header
-        u, v, width, height = box_centre_size(d.box)
-        det.bbox.center.position.x, det.bbox.center.position.y = u, v
-        det.bbox.center.theta = 0.0
-        det.bbox.size_x, det.bbox.size_y = width, height
-        for label, score in ranked_hypotheses(d, probs_second, labels, top_k):
-            hyp = ObjectHypothesisWithPose()
-            hyp.hypothesis.class_id, hyp.hypothesis.score = label, score
-            det.results.append(hyp)
-        out.detections.append(det)
-    return out
 
 
 class FoveationNode(Node):
@@ -458,7 +267,7 @@ class FoveationNode(Node):
     def _on_camera_info(self, msg: Any) -> None:
         k = camera_k(msg)
         if k is None:       # the last usable one (if any) stays in use
-            self.input_health.refuse(self._info_topic, UNUSABLE_K, _k_text(msg.k))
+            self.input_health.refuse(self._info_topic, UNUSABLE_K, k_text(msg.k))
             return
         self._principal_point = (k[2], k[5])
         self._camera_k = k
@@ -505,12 +314,7 @@ class FoveationNode(Node):
 
         quality = self._p['jpeg_quality']
         jpeg = encode_jpeg(out, msg.encoding, quality)
-        # image_transport's format string: its subscribers (republish, RViz) decode by it
-        compressed = CompressedImage(format=f'{msg.encoding}; jpeg compressed bgr8')
-        compressed.header = msg.header
-        compressed.data = (array.array('B', jpeg) if USING_REAL_ROS
-                           else np.frombuffer(jpeg, np.uint8))
-        self._jpeg_pub.publish(compressed)
+        self._jpeg_pub.publish(compressed_image(msg.header, msg.encoding, jpeg))
         self.input_health.published(self._jpeg_pub.topic_name)
         self.frames_published += 1
         self.input_health.accept(self._image_topic)
@@ -560,7 +364,7 @@ class FoveationNode(Node):
         except ValueError as exc:
             self._warn_throttled('recognition', f'recognition skipped: {exc}')
             return None
-        foveate = foveator.foveate if self._p['space_variant'] else _unfoveated
+        foveate = foveator.foveate if self._p['space_variant'] else unfoveated
         if not self._p['space_variant'] and classifier.window:
             # uniform resolution everywhere: the window model on a grid over the whole frame
             found, _ = grid_recognition(classifier, rgb, int(self._p['uniform_stride_px']))
@@ -573,12 +377,11 @@ class FoveationNode(Node):
         self.last_recognition_ms = 1000.0 * (time.perf_counter() - t0)
         for detections in (result.first, result.second):
             publish_from_thread(self, self._det_pub,
-                                self._detection_array(msg.header, fixation, detections))
+                                detection_array(msg.header, fixation, self._p['f0'], detections))
         publish_from_thread(self, self._det2d_pub, detection_2d_array(
             msg.header, result.second, result.probs_second, classifier.labels, self._p['top_k']))
         if self._p['publish_overlay'] and has_subscribers(self._overlay_pub):
-            boxes = [Box(d.box[0], d.box[1], d.box[2] - d.box[0] + 1, d.box[3] - d.box[1] + 1,
-                         d.label, d.score, d.pass_index) for d in (*result.first, *result.second)]
+            boxes = overlay_boxes([*result.first, *result.second])
             drawn = draw_overlay(foveate(rgb, fixation) if first is None else first,
                                  boxes, fixation, float(self._p['f0']))
             publish_from_thread(self, self._overlay_pub,
@@ -587,22 +390,6 @@ class FoveationNode(Node):
         self.last_result = result
         self._maybe_saccade(result.second, msg.header.frame_id, epoch, width, height)
         return result
-
-    def _detection_array(self, header: Any, fixation: tuple[float, float],
-                         detections: list[Detection]) -> Any:
-        out = FoveatedDetectionArray()
-        out.header = header
-        out.fixation_u, out.fixation_v = float(fixation[0]), float(fixation[1])
-        out.fovea_size = float(self._p['f0'])
-        for d in detections:
-            det = FoveatedDetection(label=d.label, class_id=d.class_id, score=d.score,
-                                    fixation_u=d.fixation[0], fixation_v=d.fixation[1],
-                                    pass_index=d.pass_index)
-            x0, y0, x1, y1 = d.box
-            det.box.x_offset, det.box.y_offset = x0, y0
-            det.box.width, det.box.height = x1 - x0 + 1, y1 - y0 + 1
-            out.detections.append(det)
-        return out
 
     def _maybe_saccade(self, detections: list[Detection], frame_id: str, epoch: int,
                        width: int, height: int) -> None:
@@ -628,12 +415,8 @@ class FoveationNode(Node):
             return
         u, v = target.centre
         x, y, z = back_project(u, v, k, p['saccade_distance_m'])
-        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
-                          motion=GazeCommand.MOTION_SACCADE, source=GAZE_SOURCE,
-                          priority=GAZE_PRIORITY, hold_time=float(p['saccade_hold_time_s']))
-        cmd.header.stamp = self.get_clock().now().to_msg()
-        cmd.header.frame_id = frame_id
-        cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = x, y, z
+        cmd = saccade_command(self.get_clock().now().to_msg(), frame_id, (x, y, z), GAZE_SOURCE,
+                              GAZE_PRIORITY, p['saccade_hold_time_s'])
         publish_from_thread(self, self._gaze_pub, cmd)
         self._last_saccade = now
         self.saccades_sent += 1
