@@ -48,24 +48,7 @@ before it changes state; degenerate geometry and NaN disparities inside a frame 
 point by point, StereoFrame.rejected).
 
 Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health;
-logging and /diagnostics as its docstring says). The reasons (counter keys):
-  on /vizzy/{left,right}/image_raw, one image at a time (IMAGE_REASONS): 'unsupported encoding'
-    (not rgb8/bgr8), 'empty image', 'step shorter than a row', 'size inconsistent with data'
-    (fewer data bytes than height x step); 'no partner image' (no image of the other eye came
-    within max_stamp_skew_s of its stamp: dropped unpaired, images_unpaired);
-  on both image topics, once per image of a pair the worker took (PAIR_REASONS): 'left and right
-    sizes differ', 'no camera_info' (none usable yet for an eye), 'size differs from
-    camera_info', 'no frame_id', 'no camera pose' (tf lacks ego <- left or left <- right, or the
-    rig is degenerate), 'no valid correspondences' (e.g. textureless: NaN disparities),
-    'failed on a pair: <ExcType>' (an exception in the worker); these count in frames_skipped;
-    'not newer than the last fused pair' (REPEATED_STAMP: a pair stamped at or before the last
-    fused one, e.g. the same pair sent twice: one observation is fused once; counted in
-    pairs_repeated, not frames_skipped; when the node's clock itself went back before that
-    stamp, a restarted simulation or bag, it is fused);
-  on /vizzy/{left,right}/camera_info: 'unusable K' (not 9 finite values with fx, fy in
-    [1, 1e6] px; the last good K stays in use);
-  for an exception escaping a subscription callback (node_tools.guarded): 'failed on an image:
-    <ExcType>' (or a camera_info, a state) on that callback's topic.
+logging and /diagnostics as its docstring says); the reasons (counter keys): messages.py.
 A pair's images are accepted when it was fused; held (not refused) when deliberately not fused:
 'in saccade' (frames_in_saccade) or 'max_rate_hz' (the rate limit, pairs_dropped); a pair
 replaced by a newer one before the worker took it (pairs_dropped) is neither. /diagnostics turns
@@ -81,23 +64,66 @@ from __future__ import annotations
 import math
 import threading
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from stereo_ses_node.core.decision import (
-    ACQUISITIONS,
-    Decision,
-    choose_fixation,
-    reachable_cells,
-    reward_statistics,
+from stereo_ses_node.core.decision import Decision, choose_fixation
+from stereo_ses_node.core.fixation import (
+    SACCADE_START_TIMEOUT_S,
+    FixationPolicy,
+    clamp_distance,
+    fixation_candidates,
 )
-from stereo_ses_node.core.information import information, information_from_precision
+from stereo_ses_node.core.information import information
 from stereo_ses_node.core.multires import DisparityWindow, disparity_window
-from stereo_ses_node.core.ses import BIASES, GMM, FusionReport, SensoryEgoSphere
-from stereo_ses_node.core.stereo import SGBMParams, StereoFrame, StereoPipeline
+from stereo_ses_node.core.pairing import Pair, StereoPairer
+from stereo_ses_node.core.ses import FusionReport
+from stereo_ses_node.core.stereo import SGBMParams, StereoPipeline
 from stereo_ses_node.core.ut import StereoRig, UTParams
+from stereo_ses_node.messages import (  # noqa: F401 (re-exported: tests read the node's counter
+    # keys, topics, message builders and parameter table through this module)
+    CELL_DTYPE,
+    CELLS_TOPIC,
+    ENCODINGS,
+    EYES,
+    GAZE_COMMAND_TOPIC,
+    GAZE_STATE_TOPIC,
+    IMAGE_TOPICS,
+    IN_SACCADE,
+    INFO_SIZE_MISMATCH,
+    INFO_TOPICS,
+    NO_CAMERA_INFO,
+    NO_CAMERA_POSE,
+    NO_CORRESPONDENCES,
+    NO_FRAME_ID,
+    NO_PARTNER,
+    PAIR_FAILED,
+    PAIR_REASONS,
+    POINT_DTYPE,
+    POINTS_TOPIC,
+    RATE_CAP,
+    REPEATED_STAMP,
+    SIZES_DIFFER,
+    SOURCE,
+    UNUSABLE_K,
+    cells_array,
+    gaze_command,
+    image_problem,
+    points_array,
+)
+from stereo_ses_node.params import (  # noqa: F401
+    BIAS_NAMES,
+    DISPARITY_RANGES,
+    PARAMETERS,
+    PIPELINE_PARAMETERS,
+    SENSORS,
+    SES_PARAMETERS,
+    check_all,
+    check_parameter,
+    new_ses,
+    user_gmm,
+)
 from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reasons are this
     # node's counter keys too)
     EMPTY_IMAGE,
@@ -110,14 +136,12 @@ from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reason
     ConversionError,
     array_to_pointcloud2,
     camera_k,
-    image_refusal,
     image_to_numpy,
     stamp_seconds,
 )
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
-    Param,
     declare_parameters,
     guarded,
     main_for,
@@ -127,7 +151,6 @@ from vizzy_runtime.node_tools import (
 from vizzy_runtime.rate_gate import RateGate
 from vizzy_runtime.ros import ExternalShutdownException, Node, QoSProfile, message
 from vizzy_runtime.tf import TransformBuffer, TransformListener
-from vizzy_vision.pointcloud import pack_rgb
 
 Header = message('std_msgs/msg/Header')
 Image = message('sensor_msgs/msg/Image')
@@ -136,231 +159,15 @@ PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 
-EYES = ('left', 'right')
-# Relative names: the graph remaps the generic inputs (left/image_raw:=vizzy/left/image_raw, ...)
-# and the node's namespace places everything; logs print the resolved names.
-IMAGE_TOPICS = {'left': 'left/image_raw', 'right': 'right/image_raw'}
-INFO_TOPICS = {'left': 'left/camera_info', 'right': 'right/camera_info'}
-GAZE_STATE_TOPIC = 'gaze/state'
-GAZE_COMMAND_TOPIC = 'gaze/command'
-POINTS_TOPIC = 'stereo/points'
-CELLS_TOPIC = 'ses/cells'
 # Reliable, not sensor data (REP 2003's default): a best-effort reader never repairs a lost fragment
 # of a 921 KB image, and a stereo pair needs both images (module docstring).
 STEREO_QOS = QoSProfile(depth=5)
-SOURCE = 'stereo_ses'
-ENCODINGS = ('rgb8', 'bgr8')
-# Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
-NO_PARTNER = 'no partner image'
-# a pair the worker could not fuse: counted on both image topics
-SIZES_DIFFER = 'left and right sizes differ'
-NO_CAMERA_INFO = 'no camera_info'
-INFO_SIZE_MISMATCH = 'size differs from camera_info'
-NO_FRAME_ID = 'no frame_id'
-NO_CAMERA_POSE = 'no camera pose'
-NO_CORRESPONDENCES = 'no valid correspondences'
-PAIR_FAILED = 'failed on a pair'           # + ': <ExcType>'
-PAIR_REASONS = (SIZES_DIFFER, NO_CAMERA_INFO, INFO_SIZE_MISMATCH, NO_FRAME_ID, NO_CAMERA_POSE,
-                NO_CORRESPONDENCES)
-REPEATED_STAMP = 'not newer than the last fused pair'
 # The worker waits this long [s] for the /tf that covers a pair's stamp (it may arrive just after
 # the images); then the pair is skipped ('no camera pose').
 TF_WAIT_S = 0.5
-UNUSABLE_K = 'unusable K'
-# Held, not refused (the pair is set aside by design; /diagnostics shows `held (<reason>)`).
-IN_SACCADE = 'in saccade'
-RATE_CAP = 'max_rate_hz'
 # /stereo/points silent this long (node clock) while images arrive: a /diagnostics WARN
 OUTPUT_STALL_S = 3.0
 WARN_PERIOD_S = 5.0                        # throttle of the warnings that are no refusals
-# After a gaze command, frames do not count towards frames_per_fixation until the saccade has
-# started (in_saccade seen) or this long has passed (a tiny or refused movement).
-SACCADE_START_TIMEOUT_S = 1.0
-# Images of one eye kept waiting for the other eye's image with the same stamp.
-UNPAIRED_KEPT = 3
-
-POINT_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('rgb', '<f4'),
-                        ('cxx', '<f4'), ('cxy', '<f4'), ('cxz', '<f4'), ('cyy', '<f4'),
-                        ('cyz', '<f4'), ('czz', '<f4'), ('information', '<f4')])
-CELL_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('information', '<f4'),
-                       ('sigma_r', '<f4'), ('observations', '<f4')])
-
-SENSORS = ('cartesian', 'logpolar')
-DISPARITY_RANGES = ('geometry', 'fixed')
-BIAS_NAMES = tuple(BIASES) + ('user',)
-
-# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
-PARAMETERS: tuple[Param, ...] = (
-    Param('sensor', 'logpolar',
-          "Retina: 'cartesian' (uniform grid) or 'logpolar' (section 3.3.2).", choices=SENSORS),
-    Param('n_rf', 200, 'Receptive fields per side: an n_rf x n_rf grid (cartesian) or n_rf '
-          'rings x n_rf wedges (logpolar); thesis 200. In [16, 512].', '[16, 512]'),
-    Param('disparity_range', 'geometry',
-          "Disparities SGBM searches: 'geometry' (those of points at depth_range_m along the left "
-          "camera's rays, from camera_info and tf, for each pair: verged or parallel rigs alike) "
-          "or 'fixed' ([min_disparity, min_disparity + num_disparities)). Either window is first "
-          'narrowed on a coarse pyramid level (the log-polar sensor then level by level).',
-          choices=DISPARITY_RANGES),
-    Param('depth_range_m', [0.3, 20.0], "Nearest and farthest depth [m] searched when "
-          "disparity_range is 'geometry'.", constraints='[near, far] with 0 < near < far'),
-    Param('min_disparity', SGBMParams.min_disparity,
-          "Smallest disparity searched [px] when disparity_range is 'fixed' (SGBM minDisparity), "
-          'in [-1024, 1024]. Verging eyes see points beyond the fixation at negative disparity; '
-          'a parallel rectified rig needs >= 0.', '[-1024, 1024]'),
-    Param('num_disparities', SGBMParams.num_disparities,
-          "Disparities searched from min_disparity when disparity_range is 'fixed' (SGBM "
-          'numDisparities), a multiple of 16 in [16, 1024].', '[16, 1024]', step=16),
-    Param('n_cells', 20000, 'Ego-sphere cells N_x, in [100, 200000]; a change resets the '
-          'memory.', '[100, 200000]'),
-    Param('bias', 'unbiased', "Ego-sphere cell distribution (Table 3.1): 'unbiased', 'top', "
-          "'down', 'target', or 'user' (bias_weights / bias_means / bias_variances). A change "
-          'resets the memory.', choices=BIAS_NAMES),
-    Param('bias_weights', [1.0], "User GMM ('user' bias): M component weights (>= 0, "
-          'positive sum).', constraints='finite, >= 0, positive sum'),
-    Param('bias_means', [0.0, 0.0, 0.0], 'User GMM: 3 M means (x y z per component, ego '
-          'frame, z up).', constraints='finite, 3 per bias_weights component'),
-    Param('bias_variances', [0.5, 0.5, 0.5],
-          'User GMM: 3 M diagonal variances (xx yy zz per component), > 0.',
-          constraints='finite, > 0, 3 per bias_weights component'),
-    Param('seed', 0, 'Seed of the cell sampling, in [0, 2^31).', f'[0, {2 ** 31})'),
-    Param('prior_distance_m', 10.0, 'Prior mean distance [m] of a never-observed cell (section '
-          '3.3.3: "large mean and covariance"), in [0.05, 100]. With the reward -||x|| it is how '
-          'near unobserved space is assumed to be; a change resets the memory.', '[0.05, 100]'),
-    Param('prior_sigma_m', 10.0, 'Prior standard deviation [m] of a never-observed cell '
-          '(isotropic), in [0.001, 100]; a change resets the memory.', '[0.001, 100]'),
-    Param('acquisition', 'ucb', "Next-best-view rule: 'ucb', 'pi' or 'ei' (Eqs. 3.41-3.43).",
-          choices=ACQUISITIONS),
-    Param('ucb_alpha', 100.0, 'UCB exploration weight alpha (Eq. 3.41), >= 0; 0 is greedy, '
-          '.inf pure exploration (thesis: 0, 0.01, 1, 100, inf).', '[0, inf]'),
-    Param('ut_alpha', 0.25, 'UT alpha (Eqs. 3.14-3.16), in (0, 10].', '(0, 10]'),
-    Param('ut_beta', 2.0, 'UT beta (2 for Gaussians), in [0, 10].', '[0, 10]'),
-    Param('ut_kappa', 3.0, 'UT kappa, in [-3.9, 100] (L + lambda must stay > 0).',
-          '[-3.9, 100]', constraints='L + lambda > 0 with ut_alpha'),
-    Param('max_rate_hz', 2.0, 'Most stereo pairs processed per second, in [0.01, 30] (newest '
-          'pair wins).', '[0.01, 30]'),
-    Param('max_stamp_skew_s', 0.005, 'Largest left/right stamp difference of a pair [s], in '
-          '[0, 1].', '[0, 1]'),
-    Param('ego_frame', 'ego', 'Frame of the ego-sphere and of the gaze commands '
-          '(head-centred, world-fixed orientation, z up).', constraints='a frame id, not empty'),
-    Param('publish_gaze', True, f'Send the chosen fixations on {GAZE_COMMAND_TOPIC}.'),
-    Param('gaze_priority', 20, 'Priority of the gaze commands (mot_planner 10 < 20 < '
-          'foveation 30), in [0, 1000].', '[0, 1000]'),
-    Param('hold_time', 1.0, 'hold_time of the gaze commands [s], in [0, 60].', '[0, 60]'),
-    Param('decision_period_s', 2.0, 'Least time between two gaze commands [s], in [0.1, 600].',
-          '[0.1, 600]'),
-    Param('frames_per_fixation', 2, 'Frames fused after a saccade settles before the next '
-          'decision, in [1, 100].', '[1, 100]'),
-    Param('min_z_m', -0.7, 'Cells whose mean lies below this ego-frame height [m] (the floor, '
-          'at about -0.9 m) are not fixation candidates (section 3.4.2), in [-10, 10].',
-          '[-10, 10]'),
-    Param('azimuth_limit_deg', 75.0, 'Only cells within this azimuth of straight ahead (ego x) '
-          'are fixation candidates (neck pan 53 + eye pan 38 deg, less the vergence), in '
-          '(0, 180].', '(0, 180]'),
-    Param('elevation_limits_deg', [-40.0, 45.0], 'Only cells within these [min, max] '
-          'elevations [deg] are fixation candidates (where the gaze IK reaches at 1-8 m), '
-          'within [-90, 90].', constraints='[min, max] with -90 <= min < max <= 90'),
-    Param('fixation_distance_m', [0.3, 8.0], 'A chosen cell mean is moved along its direction '
-          'into this [min, max] distance [m] (the gaze controller refuses < 0.15 m and > 10 m).',
-          constraints='[min, max] with 0.15 <= min < max <= 10'),
-    Param('cells_rate_hz', 1.0, f'Rate of {CELLS_TOPIC} [Hz], in [0.01, 30].', '[0.01, 30]'),
-    Param('publish_unobserved_cells', False, f'Also publish never-observed cells on '
-          f'{CELLS_TOPIC} (at their prior mean, prior_distance_m away).'),
-)
-# parameters whose change rebuilds the stereo pipeline / the ego-sphere
-PIPELINE_PARAMETERS = ('sensor', 'n_rf', 'min_disparity', 'num_disparities', 'ut_alpha', 'ut_beta',
-                       'ut_kappa')
-SES_PARAMETERS = ('n_cells', 'bias', 'bias_weights', 'bias_means', 'bias_variances', 'seed',
-                  'prior_distance_m', 'prior_sigma_m')
-_LISTS = ('bias_weights', 'bias_means', 'bias_variances', 'fixation_distance_m',
-          'elevation_limits_deg', 'depth_range_m')
-
-
-def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is: the rules the table's
-    ranges and choices cannot express (list shapes, a non-empty frame id)."""
-    if name == 'ego_frame':
-        return None if value.strip('/') else 'ego_frame must be a non-empty frame id'
-    if name in _LISTS:
-        values = [float(v) for v in value]   # a double array (the descriptor's type)
-        if not values or not all(math.isfinite(v) for v in values):
-            return f'{name} must be a non-empty list of finite numbers, got {list(value)!r}'
-        if name == 'bias_weights' and (min(values) < 0 or sum(values) <= 0):
-            return 'bias_weights must be >= 0 with a positive sum'
-        if name in ('bias_means', 'bias_variances') and len(values) % 3:
-            return f'{name} needs 3 numbers per component, got {len(values)}'
-        if name == 'bias_variances' and min(values) <= 0:
-            return 'bias_variances must be > 0'
-        if name == 'elevation_limits_deg' and not (len(values) == 2
-                                                   and -90.0 <= values[0] < values[1] <= 90.0):
-            return 'elevation_limits_deg must be [min, max] with -90 <= min < max <= 90'
-        if name == 'fixation_distance_m' and not (len(values) == 2
-                                                  and 0.15 <= values[0] < values[1] <= 10.0):
-            return 'fixation_distance_m must be [min, max] with 0.15 <= min < max <= 10'
-        if name == 'depth_range_m' and not (len(values) == 2 and 0.0 < values[0] < values[1]):
-            return 'depth_range_m must be [near, far] with 0 < near < far'
-    return None
-
-
-def check_all(values: dict[str, Any]) -> list[str]:
-    """Problems of the parameters taken together (the user GMM's sizes, the UT's lambda)."""
-    problems = []
-    m = len(values['bias_weights'])
-    if len(values['bias_means']) != 3 * m or len(values['bias_variances']) != 3 * m:
-        problems.append(f'bias_means and bias_variances need 3 x {m} numbers for {m} weights')
-    try:
-        UTParams(float(values['ut_alpha']), float(values['ut_beta']), float(values['ut_kappa']))
-    except ValueError as exc:
-        problems.append(str(exc))
-    return problems
-
-
-def user_gmm(values: dict[str, Any]) -> GMM:
-    """The 'user' bias GMM from the bias_* parameters."""
-    m = len(values['bias_weights'])
-    return GMM.create(values['bias_weights'], np.reshape(values['bias_means'], (m, 3)),
-                      np.reshape(values['bias_variances'], (m, 3)))
-
-
-def image_problem(msg: Any) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
-    IMAGE_REASONS, a counter key)."""
-    return image_refusal(msg, dict.fromkeys(ENCODINGS, 3))
-
-
-def points_array(frame: StereoFrame, info: np.ndarray) -> np.ndarray:
-    """The /stereo/points structured array of a frame (left optical frame)."""
-    out = np.empty(frame.means.shape[0], POINT_DTYPE)
-    for i, axis in enumerate('xyz'):
-        out[axis] = frame.means[:, i]
-    out['rgb'] = pack_rgb(frame.colors)
-    for name, (a, b) in (('cxx', (0, 0)), ('cxy', (0, 1)), ('cxz', (0, 2)), ('cyy', (1, 1)),
-                         ('cyz', (1, 2)), ('czz', (2, 2))):
-        out[name] = frame.covs[:, a, b]
-    out['information'] = info
-    return out
-
-
-def cells_array(ses: SensoryEgoSphere, observed_only: bool) -> np.ndarray:
-    """The /ses/cells structured array (ego frame)."""
-    idx = np.nonzero(ses.n_obs > 0)[0] if observed_only else np.arange(ses.n_cells)
-    out = np.empty(idx.size, CELL_DTYPE)
-    mean = ses.mean[idx]
-    for i, axis in enumerate('xyz'):
-        out[axis] = mean[:, i]
-    out['information'] = information_from_precision(ses.info[idx])
-    out['sigma_r'] = reward_statistics(mean, ses.cov[idx])[1]
-    out['observations'] = ses.n_obs[idx]
-    return out
-
-
-@dataclass
-class Pair:
-    """A left and a right image with the same stamp (within max_stamp_skew_s); stamp: the left
-    image's [s]."""
-
-    left: Any
-    right: Any
-    stamp: float
 
 
 class StereoSesNode(Node):
@@ -374,23 +181,16 @@ class StereoSesNode(Node):
         self.input_health = InputHealth(self)
         self._lock = threading.Lock()
         self._ses_lock = threading.Lock()
-        self._unpaired: dict[str, list[Any]] = {e: [] for e in EYES}   # waiting, oldest first
+        self._pairer = StereoPairer(lambda m: stamp_seconds(m.header.stamp))
+        self._unpaired = self._pairer.unpaired     # waiting per eye, oldest first
         self._k: dict[str, np.ndarray] = {}
         self._info_size: dict[str, tuple[int, int]] = {}
-        self._in_saccade = False
-        self._settled_at = -math.inf                  # stamp of the last saccade's end
-        self._awaiting_saccade_until = -math.inf      # node-clock deadline after a command
-        self._frames_since_settle = 0
-        self._last_command = -math.inf                # node clock [s] (sim time in the graph)
+        self._policy = FixationPolicy(SOURCE)   # saccades, decision timing, refused cells
         self._pair_gate = RateGate()                  # max_rate_hz in the pairs' stamps
         self._pipeline: StereoPipeline | None = None
         self._pipeline_dirty = False
-        self._ses = self._new_ses()
+        self._ses = new_ses(self._p)
         self._ses_dirty = False
-        self._refused: set[int] = set()   # cells not to choose: refused, or fixating gave nothing
-        self._fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
-        self._own_saccade = False         # the saccade under way is this node's
-        self._served = False              # the gaze controller served the last command
         self._warn_throttled = ThrottledWarnings(self, WARN_PERIOD_S)  # what is no refusal
         # counters (read by tests and the periodic log)
         self.pairs_received = 0
@@ -455,14 +255,24 @@ class StereoSesNode(Node):
             f'{" alpha " + str(p["ucb_alpha"]) if p["acquisition"] == "ucb" else ""} '
             f'{"on" if p["publish_gaze"] else "off"} (priority {p["gaze_priority"]})')
 
-    # --- set-up ---------------------------------------------------------------------------------
+    # the policy's state, as tests read (and set) it on the node
+    @property
+    def _in_saccade(self) -> bool:
+        return self._policy.in_saccade
 
-    def _new_ses(self) -> SensoryEgoSphere:
-        p = self._p
-        bias: GMM | str = user_gmm(p) if p['bias'] == 'user' else p['bias']
-        return SensoryEgoSphere(int(p['n_cells']), bias, seed=int(p['seed']),
-                                init_distance=float(p['prior_distance_m']),
-                                init_sigma=float(p['prior_sigma_m']))
+    @property
+    def _refused(self) -> set[int]:
+        return self._policy.refused
+
+    @property
+    def _frames_since_settle(self) -> int:
+        return self._policy.frames_since_settle
+
+    @_frames_since_settle.setter
+    def _frames_since_settle(self, value: int) -> None:
+        self._policy.frames_since_settle = value
+
+    # --- set-up ---------------------------------------------------------------------------------
 
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
         with self._lock:
@@ -489,32 +299,16 @@ class StereoSesNode(Node):
 
     def _on_gaze_state(self, msg: Any) -> None:
         with self._lock:
-            saccade = bool(msg.in_saccade)
-            if saccade:
-                self._awaiting_saccade_until = -math.inf
-                if msg.active_source == SOURCE:
-                    self._own_saccade = True         # our command moves the eyes
-                    self._served = True
-            if self._in_saccade and not saccade:
-                # pairs stamped before this were taken before or during the movement
-                # (blurred; saccadic suppression)
-                self._settled_at = stamp_seconds(msg.header.stamp)
-                if self._own_saccade:
-                    # our own saccade settled: count the frames of its fixation. Other sources'
-                    # saccades (the object map's looks every ~1.1 s, foveation's) do not restart
-                    # the count: their frames are observations too, and restarting on them left
-                    # this node one decision in 30 s of the deployed graph (issue 26)
-                    self._own_saccade = False
-                    self._frames_since_settle = 0
-            self._in_saccade = saccade
+            self._policy.on_gaze_state(bool(msg.in_saccade), msg.active_source,
+                                       stamp_seconds(msg.header.stamp))
         self.input_health.accept(self._gaze_state_topic)
         if msg.status in (GazeState.STATUS_REJECTED_NAN, GazeState.STATUS_REJECTED_UNKNOWN_FRAME,
                           GazeState.STATUS_REJECTED_UNREACHABLE,
                           GazeState.STATUS_REJECTED_INVALID) and self.last_decision is not None \
-                and self._clock_s() - self._last_command < SACCADE_START_TIMEOUT_S:
+                and self._clock_s() - self._policy.last_command < SACCADE_START_TIMEOUT_S:
             # the status of the command just sent (the controller answers at once)
             with self._lock:        # not chosen again (until the ego-sphere is rebuilt)
-                self._refused.add(self.last_decision.cell)
+                self._policy.refused.add(self.last_decision.cell)
             self._warn_throttled('gaze_status', f'{self._gaze_state_topic}: a gaze command was '
                                                 f'refused: {msg.status_message}')
 
@@ -523,28 +317,11 @@ class StereoSesNode(Node):
         if problem:
             self.input_health.refuse(self._image_topics[eye], *problem)
             return
-        other_eye = 'right' if eye == 'left' else 'left'
         t = stamp_seconds(msg.header.stamp)
         skew = self._p['max_stamp_skew_s']
         with self._lock:
-            mine, others = self._unpaired[eye], self._unpaired[other_eye]
-            match = next((m for m in others if abs(stamp_seconds(m.header.stamp) - t) <= skew),
-                         None)
-            if match is None:
-                # wait for the partner (the eyes' images may arrive interleaved); the oldest
-                # waiting image goes when too many wait: its partner was lost
-                mine.append(msg)
-                unpaired = {eye: mine[:-UNPAIRED_KEPT]}
-                del mine[:-UNPAIRED_KEPT]
-            else:
-                # pair; older images of either eye can no longer win (newest pair wins)
-                t_other = stamp_seconds(match.header.stamp)
-                unpaired = {eye: list(mine), other_eye: [
-                    m for m in others if stamp_seconds(m.header.stamp) < t_other]}
-                others[:] = [m for m in others if stamp_seconds(m.header.stamp) > t_other]
-                mine.clear()
-                left_msg, right_msg = (msg, match) if eye == 'left' else (match, msg)
-                pair = Pair(left_msg, right_msg, stamp_seconds(left_msg.header.stamp))
+            pair, unpaired = self._pairer.add(eye, msg, skew)
+            if pair is not None:
                 self.pairs_received += 1
                 # max_rate_hz in the images' own time (sim time in the graph): a loaded
                 # machine fuses the same pairs, later, not fewer per second of video
@@ -695,19 +472,18 @@ class StereoSesNode(Node):
         if self._repeated(pair):
             return
         with self._lock:
-            in_saccade = self._in_saccade or pair.stamp < self._settled_at
+            in_saccade = self._policy.suppressed(pair.stamp)
             if self._ses_dirty:
                 self._ses_dirty = False
                 rebuild = True
             else:
                 rebuild = False
         if rebuild:
-            ses = self._new_ses()
+            ses = new_ses(self._p)
             with self._ses_lock:
                 self._ses = ses
             with self._lock:
-                self._refused.clear()
-                self._fixated = None
+                self._policy.reset()
             self.get_logger().info(f'ego-sphere rebuilt: {self._ses.n_cells} cells, '
                                    f'{self._p["bias"]} bias (memory reset)')
         if in_saccade:                 # saccadic suppression: the image is blurred, poses move
@@ -738,18 +514,8 @@ class StereoSesNode(Node):
         if bad:
             self.get_logger().debug(f'frame: {report.summary()}; stereo rejected {bad}')
         with self._lock:
-            if self._clock_s() >= self._awaiting_saccade_until:
-                self._frames_since_settle += 1
-            fixated = self._fixated
-            if (fixated is not None
-                    and self._frames_since_settle >= self._p['frames_per_fixation']):
-                cell, seen = fixated
-                self._fixated = None
-                if self._served and self._ses.n_obs[cell] == seen:
-                    # the fixation gave its cell no observation (the eyes sit in front of ego,
-                    # so the fixated point may fall in a neighbouring cell): without this, an
-                    # unobserved cell keeps its prior and would be chosen for ever
-                    self._refused.add(cell)
+            self._policy.on_fused(self._clock_s(), self._p['frames_per_fixation'],
+                                  self._ses.n_obs)
         self.processing_s.append(time.monotonic() - t0)
         del self.processing_s[:-50]
         if len(self.processing_s) == 50 and self.frames_fused % 50 == 0:
@@ -773,41 +539,27 @@ class StereoSesNode(Node):
             return
         now = self._clock_s()
         with self._lock:
-            ready = (not self._in_saccade and now >= self._awaiting_saccade_until
-                     and self._frames_since_settle >= p['frames_per_fixation']
-                     and now - self._last_command >= p['decision_period_s'])
+            ready = self._policy.ready(now, p['frames_per_fixation'], p['decision_period_s'])
         if not ready:
             return
         ses = self._ses
         el = np.radians(p['elevation_limits_deg'])
-        candidates = (ses.mean[:, 2] >= p['min_z_m']) & reachable_cells(
-            ses.directions, math.radians(p['azimuth_limit_deg']), (el[0], el[1]))
         with self._lock:
-            refused = list(self._refused)
-        candidates[refused] = False
+            refused = list(self._policy.refused)
+        candidates = fixation_candidates(ses.mean, ses.directions, p['min_z_m'],
+                                         math.radians(p['azimuth_limit_deg']), (el[0], el[1]),
+                                         refused)
         if not np.any(candidates):
             self._warn_throttled('decision', 'no reachable cell above min_z_m: no fixation')
             return
         decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
                                    candidates=candidates)
         dmin, dmax = p['fixation_distance_m']
-        point = decision.fixation
-        dist = float(np.linalg.norm(point))
-        point = point * (min(max(dist, dmin), dmax) / max(dist, 1e-9))
-        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT, motion=GazeCommand.MOTION_SACCADE,
-                          source=SOURCE, priority=int(p['gaze_priority']),
-                          hold_time=float(p['hold_time']))
-        cmd.header.frame_id = p['ego_frame']
-        cmd.header.stamp = self.get_clock().now().to_msg()
-        cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = (float(v)
-                                                                            for v in point)
+        point = clamp_distance(decision.fixation, dmin, dmax)
+        cmd = gaze_command(point, p, self.get_clock().now().to_msg())
         publish_from_thread(self, self._gaze_pub, cmd)
         with self._lock:
-            self._last_command = now
-            self._awaiting_saccade_until = now + SACCADE_START_TIMEOUT_S
-            self._frames_since_settle = 0
-            self._fixated = (decision.cell, int(ses.n_obs[decision.cell]))
-            self._served = False          # a pre-empted command fixated nothing: no refusal
+            self._policy.commanded(now, decision.cell, int(ses.n_obs[decision.cell]))
         self.gaze_commands += 1
         self.last_decision = decision
         self.get_logger().debug(f'fixation: cell {decision.cell} at {np.round(point, 3)} '

@@ -1,0 +1,104 @@
+"""The gaze-decision bookkeeping of the stereo_ses node (ROS-free; not thread-safe: the node
+holds its lock around every call): saccadic suppression, when the next fixation may be chosen,
+and the cells not to choose again."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from stereo_ses_node.core.decision import reachable_cells
+
+# After a gaze command, frames do not count towards frames_per_fixation until the saccade has
+# started (in_saccade seen) or this long has passed (a tiny or refused movement).
+SACCADE_START_TIMEOUT_S = 1.0
+
+
+class FixationPolicy:
+    """Saccade state, frames counted since this node's saccade settled, and refused cells."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source                          # this node's GazeCommand.source
+        self.in_saccade = False
+        self.settled_at = -math.inf                   # stamp of the last saccade's end
+        self.awaiting_saccade_until = -math.inf       # node-clock deadline after a command
+        self.frames_since_settle = 0
+        self.last_command = -math.inf                 # node clock [s] (sim time in the graph)
+        self.refused: set[int] = set()   # cells not to choose: refused, or fixating gave nothing
+        self.fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
+        self.own_saccade = False          # the saccade under way is this node's
+        self.served = False               # the gaze controller served the last command
+
+    def on_gaze_state(self, saccade: bool, active_source: str, stamp: float) -> None:
+        """A GazeState: in_saccade, its active_source, its stamp [s]."""
+        if saccade:
+            self.awaiting_saccade_until = -math.inf
+            if active_source == self.source:
+                self.own_saccade = True          # our command moves the eyes
+                self.served = True
+        if self.in_saccade and not saccade:
+            # pairs stamped before this were taken before or during the movement
+            # (blurred; saccadic suppression)
+            self.settled_at = stamp
+            if self.own_saccade:
+                # our own saccade settled: count the frames of its fixation. Other sources'
+                # saccades (the object map's looks every ~1.1 s, foveation's) do not restart
+                # the count: their frames are observations too, and restarting on them left
+                # this node one decision in 30 s of the deployed graph (issue 26)
+                self.own_saccade = False
+                self.frames_since_settle = 0
+        self.in_saccade = saccade
+
+    def suppressed(self, stamp: float) -> bool:
+        """Is a pair stamped stamp [s] taken in a saccade (not to be fused)?"""
+        return self.in_saccade or stamp < self.settled_at
+
+    def reset(self) -> None:
+        """The ego-sphere was rebuilt: its cells are new."""
+        self.refused.clear()
+        self.fixated = None
+
+    def on_fused(self, now: float, frames_per_fixation: int, n_obs: np.ndarray) -> None:
+        """A frame was fused at node-clock time now; n_obs: the cells' observation counts."""
+        if now >= self.awaiting_saccade_until:
+            self.frames_since_settle += 1
+        fixated = self.fixated
+        if fixated is not None and self.frames_since_settle >= frames_per_fixation:
+            cell, seen = fixated
+            self.fixated = None
+            if self.served and n_obs[cell] == seen:
+                # the fixation gave its cell no observation (the eyes sit in front of ego,
+                # so the fixated point may fall in a neighbouring cell): without this, an
+                # unobserved cell keeps its prior and would be chosen for ever
+                self.refused.add(cell)
+
+    def ready(self, now: float, frames_per_fixation: int, period_s: float) -> bool:
+        """May the next fixation be chosen at node-clock time now?"""
+        return (not self.in_saccade and now >= self.awaiting_saccade_until
+                and self.frames_since_settle >= frames_per_fixation
+                and now - self.last_command >= period_s)
+
+    def commanded(self, now: float, cell: int, n_obs: int) -> None:
+        """A command to fixate cell (n_obs observations so far) went out at now."""
+        self.last_command = now
+        self.awaiting_saccade_until = now + SACCADE_START_TIMEOUT_S
+        self.frames_since_settle = 0
+        self.fixated = (cell, n_obs)
+        self.served = False          # a pre-empted command fixated nothing: no refusal
+
+
+def fixation_candidates(means: np.ndarray, directions: np.ndarray, min_z: float,
+                        azimuth_limit: float, elevation_limits: tuple[float, float],
+                        refused: list[int]) -> np.ndarray:
+    """Cells that may be fixated: mean above min_z [m], reachable (angles [rad]), not refused."""
+    candidates = (means[:, 2] >= min_z) & reachable_cells(directions, azimuth_limit,
+                                                           elevation_limits)
+    candidates[refused] = False
+    return candidates
+
+
+def clamp_distance(point: np.ndarray, dmin: float, dmax: float) -> np.ndarray:
+    """point moved along its direction into [dmin, dmax] of distance."""
+    dist = float(np.linalg.norm(point))
+    return point * (min(max(dist, dmin), dmax) / max(dist, 1e-9))
