@@ -85,16 +85,38 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mot_planner_node.core.detector import Detector, HogDetector
+from mot_planner_node import messages
+from mot_planner_node.core.bookkeeping import FramePeriod, TrackBook, gaze_point
+from mot_planner_node.core.detector import Detector
 from mot_planner_node.core.egomotion import rotation_between, rotation_homography
 from mot_planner_node.core.ground_plane import ConsistencyGate, implied_size
-from mot_planner_node.core.planner import PlannerConfig
-from mot_planner_node.core.tracker import (
-    DEPLOYED,
-    FrameError,
-    FrameResult,
-    MotTracker,
-    deployed_config,
+from mot_planner_node.core.tracker import FrameError, FrameResult, MotTracker, deployed_config
+from mot_planner_node.messages import (  # noqa: F401  re-exported: labels, input checks
+    ENCODINGS,
+    LABEL_IMPLAUSIBLE,
+    LABEL_PERSON,
+    SOURCE,
+    AttentionRegions,
+    GazeCommand,
+    TrackArray,
+    _k_text,
+    camera_k,
+    image_problem,
+)
+from mot_planner_node.parameters import (  # noqa: F401  re-exported: the node's parameter table
+    DETECTOR_PARAMETERS,
+    FLOOR_Z_M,
+    GAZE_COMMAND_TOPIC,
+    MIN_RATE_HZ,
+    OVERLAY_TOPIC,
+    PARAMETERS,
+    PERSON_PARAMETERS,
+    PLANNER_PARAMETERS,
+    TRACK_PARAMETERS,
+    check_parameter,
+    make_hog_detector,
+    planner_config,
+    track_settings,
 )
 from vizzy_runtime.convert import (  # noqa: F401  the image reasons: this node's counter keys too
     EMPTY_IMAGE,
@@ -105,28 +127,18 @@ from vizzy_runtime.convert import (  # noqa: F401  the image reasons: this node'
     UNCONVERTIBLE,
     UNSUPPORTED_ENCODING,
     ConversionError,
-    image_refusal,
     image_to_numpy,
     numpy_to_image,
     stamp_seconds,
 )
-from vizzy_runtime.convert import (
-    camera_k as usable_k,
-)
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
-from vizzy_runtime.node_tools import Param, declare_parameters, guarded, has_subscribers, main_for
+from vizzy_runtime.node_tools import declare_parameters, guarded, has_subscribers, main_for
 from vizzy_runtime.rate_gate import RateGate
 from vizzy_runtime.ros import Node, message, qos_profile_sensor_data
 from vizzy_runtime.tf import FramePoses, TransformBuffer, TransformListener
-from vizzy_vision.rays import back_project
 
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
-RegionOfInterest = message('sensor_msgs/msg/RegionOfInterest')
-Track = message('active_vision_msgs/msg/Track')
-TrackArray = message('active_vision_msgs/msg/TrackArray')
-AttentionRegions = message('active_vision_msgs/msg/AttentionRegions')
-GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 
 # Relative names: the graph remaps the generic inputs (image_raw:=vizzy/left/image_raw, ...) and
@@ -136,179 +148,22 @@ CAMERA_INFO_TOPIC = 'camera_info'
 GAZE_STATE_TOPIC = 'gaze/state'
 TRACKS_TOPIC = 'mot/tracks'
 ATTENTION_TOPIC = 'mot/attention'
-OVERLAY_TOPIC = 'mot/overlay'
-GAZE_COMMAND_TOPIC = 'gaze/command'
-SOURCE = 'mot_planner'
-ENCODINGS = ('rgb8', 'bgr8')
 # Refusal reasons (InputHealth counter keys: short and stable; the values go in the detail).
 UNUSABLE_FRAME = 'unusable frame'
 SMALLER_THAN_WINDOW = 'smaller than the detector window'
 UNUSABLE_K = 'unusable K'
 RATE_CAP = 'max_rate_hz'           # held, not refused: frames beyond the rate cap
-MIN_RATE_HZ = 0.01                 # a positive max_rate_hz below this stops tracking
 # /mot/tracks silent this long (node clock) while images arrive: a diagnostics WARN
 OUTPUT_STALL_S = 3.0
 NOMINAL_FPS = 30.0
-# The floor in base_link: -vizzy_vision.kinematics.WAIST_HEIGHT (the waist joint's height
-# in vizzy_description), copied so that the node does not depend on the simulator's package.
-FLOOR_Z_M = -0.535797
-LABEL_PERSON = 'person'
-LABEL_IMPLAUSIBLE = 'person_implausible'     # a person box that does not stand on the floor
 WARN_PERIOD_S = 5.0
-
-# The node declares exactly these; each range is the descriptor's, enforced by the middleware.
-PARAMETERS: tuple[Param, ...] = (
-    Param('k_max', 3, 'K_max: most search regions processed per frame (section 5.3.4), in '
-          '[1, 20].', '[1, 20]'),
-    Param('s_max', 0.1, 'S_max: largest fraction of the image\'s pixels the detector reads per '
-          'frame (section 5.3.4; counted at the resolution it reads them, full frames paid '
-          'from what the regions leave), in (0, 1].', '(0, 1]'),
-    Param('alpha_c', 1.0, 'Search-region width in centre stds (Eq. 5.18), in [0, 10].',
-          '[0, 10]'),
-    Param('alpha_s', 1.0, 'Search-region width in scale stds (Eq. 5.19), in [0, 10].',
-          '[0, 10]'),
-    Param('max_rate_hz', 0.0, 'Most frames tracked per second, counted in the images\' stamps '
-          '(the others are dropped before any work; 0: every frame), in [0, 1000].',
-          '[0, 1000]', constraints=f'0 or at least {MIN_RATE_HZ} Hz'),
-    Param('budget_ms', 10.0, 'Wall-clock planning budget per frame [ms], in [0.1, 1000].',
-          '[0.1, 1000]'),
-    Param('horizon', DEPLOYED['horizon'], 'Planning horizon T in frames, the depth of the MCTS '
-          'search (section 5.3.5; the thesis used 3), in [1, 8].', '[1, 8]'),
-    Param('full_frame_period', DEPLOYED['full_frame_period'], 'Fewest frames between two '
-          'full-frame detections (where new tracks are born; each is paid from the S_max '
-          'budget the regions leave), in [1, 100000].', '[1, 100000]'),
-    Param('birth_share', DEPLOYED['birth_share'], 'Share of each frame\'s S_max saved for '
-          'full-frame detections (track births); the regions get the rest, in [0, 0.95].',
-          '[0, 0.95]'),
-    Param('birth_score', DEPLOYED['birth_score'], 'Least detector score (HOG\'s SVM margin) '
-          'of a detection that starts a track or brings back a lost one; weaker detections '
-          'still update tracks, in [-10, 10].', '[-10, 10]'),
-    Param('report_misses', DEPLOYED['report_misses'], 'A track is published while it has at '
-          'most this many consecutive misses (-1: while it lives), in [-1, 1000].',
-          '[-1, 1000]'),
-    Param('keep_lost', DEPLOYED['keep_lost'], 'Frames a deleted track is remembered; a '
-          'detection in its gate brings it back under its id (0: never), in [0, 1000].',
-          '[0, 1000]'),
-    Param('occluded_share', DEPLOYED['occluded_share'], 'A track whose box is covered by at '
-          'least this share by a nearer track\'s is occluded: no region is spent on it and it '
-          'is not missed while hidden (0: no occlusion reasoning), in [0, 1].', '[0, 1]'),
-    Param('tentative_misses', DEPLOYED['tentative_misses'], 'Consecutive misses a new track '
-          'survives before it is confirmed (0: dropped on its first), in [0, 100].', '[0, 100]'),
-    Param('hit_threshold', 0.0, 'HOG SVM hit threshold (higher: fewer detections), in '
-          '[-10, 10].', '[-10, 10]'),
-    Param('region_hit_threshold', DEPLOYED['region_hit_threshold'], 'HOG SVM hit threshold '
-          'inside the tracks\' regions, where a person is predicted (lower: a weaker window '
-          'there still updates the track), in [-10, 10].', '[-10, 10]'),
-    Param('read_upsample', DEPLOYED['read_upsample'], 'A region is read at this many times its '
-          'smallest scale and enlarged back before HOG scans it (fewer pixels read per region; '
-          '1: read at that scale), in [1, 2].', '[1, 2]'),
-    # step 8 from 8: the multiples of 8 (the HOG block stride)
-    Param('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].', '[8, 64]',
-          step=8),
-    Param('scale', 1.05, 'HOG pyramid scale step, in (1, 2].', '(1, 2]'),
-    Param('publish_overlay', True, f'Publish the overlay image on {OVERLAY_TOPIC}.'),
-    Param('publish_gaze', True,
-          f'Send pursuit commands on {GAZE_COMMAND_TOPIC} to keep the tracks in view.'),
-    Param('gaze_priority', 10, 'Priority of the gaze commands (below the other nodes\' '
-          'saccades), in [0, 1000].', '[0, 1000]'),
-    Param('gaze_depth_m', 3.0, 'Nominal depth of the fixation point along the group\'s ray '
-          '[m], in (0.1, 100].', '(0.1, 100]'),
-    Param('gaze_rate_hz', 2.0, 'Most gaze commands per second, in [0.01, 30].', '[0.01, 30]'),
-    Param('gaze_min_hits', 3, 'Only tracks detected at least this many times steer the gaze, '
-          'in [1, 1000].', '[1, 1000]'),
-    Param('gaze_min_age', 5, 'Only tracks at least this many frames old steer the gaze, in '
-          '[0, 100000].', '[0, 100000]'),
-    Param('person_check', True,
-          'Only tracks whose box stands on the floor at a person\'s height steer the gaze '
-          '(needs camera_info and the camera\'s pose in world_frame).'),
-    Param('person_height_m', [1.3, 2.5],
-          'Range [min, max] of the height [m] a box standing on the floor must imply, 0 < min '
-          '< max <= 10.', constraints='[min, max] with 0 < min < max <= 10'),
-    Param('floor_z_m', FLOOR_Z_M, 'Height of the floor in world_frame [m] (base_link, the '
-          'waist, stands WAIST_HEIGHT above it), in [-100, 100].', '[-100, 100]'),
-    Param('person_check_frames', 5, 'The implied height must be in range on each of a '
-          'track\'s last this many frames, in [1, 1000].', '[1, 1000]'),
-    Param('person_height_ratio', 1.3, 'Largest max/min of a track\'s implied heights over '
-          'those frames (a person\'s stays put; a box above the floor sweeps as the head '
-          'moves), in [1, 10].', '[1, 10]'),
-    Param('ego_motion', True, 'Compensate the camera\'s rotation between images (from /tf).'),
-    Param('world_frame', 'base_link', 'A frame that does not rotate with the head, for '
-          'ego-motion.', constraints='a frame id, not empty'),
-)
-PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'horizon',
-                      'full_frame_period')
-TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
-                    'keep_lost', 'occluded_share', 'tentative_misses')
-DETECTOR_PARAMETERS = ('hit_threshold', 'region_hit_threshold', 'read_upsample', 'win_stride',
-                       'scale')
-PERSON_PARAMETERS = ('person_height_m', 'person_check_frames', 'person_height_ratio')
 TF_HISTORY_S = 2.0
 # max_rate_hz at half the camera's rate takes every other frame, their stamps rounded or not
 RATE_SLACK = 0.1
 
 
-def check_parameter(name: str, value: Any) -> str | None:
-    """Why value is not acceptable for parameter name, or None if it is: what the table's
-    ranges cannot express (types and ranges are the descriptors', see PARAMETERS)."""
-    if name == 'person_height_m':
-        values = [float(v) for v in value]      # a double array (the descriptor's type)
-        ok = (len(values) == 2 and all(math.isfinite(v) for v in values)
-              and 0.0 < values[0] < values[1] <= 10.0)
-        return None if ok else f'person_height_m must be [min, max] with 0 < min < max <= 10, ' \
-                               f'got {values!r}'
-    if name == 'max_rate_hz' and 0.0 < value < MIN_RATE_HZ:
-        return (f'max_rate_hz must be 0 (every frame) or at least {MIN_RATE_HZ} Hz, got {value:g} '
-                '(a frame every few hours is tracking switched off)')
-    if name == 'world_frame' and not value.strip('/'):
-        return f'world_frame must be a frame id, got {value!r}'
-    return None
-
-
-def image_problem(msg: Any) -> tuple[str, str] | None:
-    """(reason, detail) of why an input image cannot be used, or None if it can (reason: one of
-    IMAGE_REASONS, a counter key)."""
-    return image_refusal(msg, dict.fromkeys(ENCODINGS, 3))
-
-
-def _k_text(k: Any) -> str:
-    return 'K [' + ', '.join(f'{float(v):g}' for v in k) + ']'
-
-
-def camera_k(msg: Any) -> list[float] | None:
-    """The 9 values of a CameraInfo's K if usable (vizzy_runtime.convert.camera_k), else None."""
-    k = usable_k(msg)
-    return None if k is None else k.ravel().tolist()
-
-
-def make_hog_detector(params: dict[str, Any]) -> Detector:
-    """The default detector: OpenCV's HOG people detector with the node's settings."""
-    return HogDetector(win_stride=int(params['win_stride']), scale=float(params['scale']),
-                       hit_threshold=float(params['hit_threshold']),
-                       region_hit_threshold=float(params['region_hit_threshold']),
-                       upsample=float(params['read_upsample']))
-
-
 #: params -> Detector. Module-level so that a test (or an integrator) can plug in another one.
 DETECTOR_FACTORY: Callable[[dict[str, Any]], Detector] = make_hog_detector
-
-
-def track_settings(params: dict[str, Any]) -> dict[str, Any]:
-    """The TrackerConfig fields the node's track parameters set (births, reporting)."""
-    misses = int(params['report_misses'])
-    return {'full_frame_period': int(params['full_frame_period']),
-            'birth_share': float(params['birth_share']),
-            'birth_score': float(params['birth_score']),
-            'report_misses': None if misses < 0 else misses,
-            'keep_lost': int(params['keep_lost']),
-            'occluded_share': float(params['occluded_share']) or None,
-            'tentative_misses': int(params['tentative_misses'])}
-
-
-def planner_config(params: dict[str, Any]) -> PlannerConfig:
-    return PlannerConfig(k_max=int(params['k_max']), s_max=float(params['s_max']),
-                         alpha_c=float(params['alpha_c']), alpha_s=float(params['alpha_s']),
-                         budget_ms=float(params['budget_ms']), area=str(DEPLOYED['area']),
-                         depth=int(params['horizon']))
 
 
 class MotPlannerNode(Node):
@@ -324,11 +179,8 @@ class MotPlannerNode(Node):
         self.input_health = InputHealth(self)
         self._in_saccade = False
         self._k: list[float] | None = None
-        self._last_stamp: float | None = None
-        self._frame_period = 1.0 / NOMINAL_FPS
-        self._born: dict[int, int] = {}          # track id -> frame index it was born
-        self._hits: dict[int, int] = {}          # track id -> hits seen last frame
-        self._lost: dict[int, int] = {}          # track id -> consecutive frames unmatched
+        self._frame_period = FramePeriod(1.0 / NOMINAL_FPS)
+        self._book = TrackBook()                 # track ages and frames_lost
         self._last_gaze = -math.inf
         self._persons = self._person_gate()
         self.last_implied_heights: dict[int, float] = {}    # track id -> [m], last check
@@ -462,9 +314,7 @@ class MotPlannerNode(Node):
 
 
     def _forget_tracks(self) -> None:
-        self._born.clear()
-        self._hits.clear()
-        self._lost.clear()
+        self._book.clear()
         self._persons.clear()
 
     # --- the frame loop ---------------------------------------------------------------------
@@ -510,15 +360,19 @@ class MotPlannerNode(Node):
         self._last_pose = pose
         self.frames_compensated += homography is not None
         self.frames_processed += 1
-        self._update_frame_period(msg.header.stamp)
-        self._update_bookkeeping(result)
+        self._frame_period.update(stamp_seconds(msg.header.stamp))
+        tracks = tracker.tracks      # every track, tentative ones included: ages, frames_lost
+        self._book.update(tracks.ids.tolist(), tracks.hits.tolist(), result.frame)
         persons = self._check_persons(msg.header, result, pose)
-        self._tracks_pub.publish(self._track_array(msg.header, result, persons))
+        self._tracks_pub.publish(messages.track_array(
+            msg.header, result, persons, self._frame_period.period_s, self._book))
         self.input_health.published(self._tracks_pub.topic_name)
-        self._attention_pub.publish(self._attention(msg.header, result, size))
+        planner = tracker.cfg.planner
+        self._attention_pub.publish(messages.attention(msg.header, result, size, planner.k_max,
+                                                       planner.s_max))
         if self._p['publish_overlay'] and has_subscribers(self._overlay_pub):
             self._overlay_pub.publish(numpy_to_image(
-                self._overlay(image, msg.encoding, result, persons), 'rgb8', header=msg.header))
+                messages.overlay(image, msg.encoding, result, persons), 'rgb8', header=msg.header))
         if self._p['publish_gaze']:
             self._send_gaze(msg.header, result, pose, persons)
         self.input_health.accept(self._image_topic)
@@ -527,30 +381,6 @@ class MotPlannerNode(Node):
         """How long /mot/tracks may be silent while images arrive: three capped frames at least."""
         rate = self._p['max_rate_hz']
         return max(OUTPUT_STALL_S, 3.0 / rate) if rate > 0 else OUTPUT_STALL_S
-
-    def _update_frame_period(self, stamp: Any) -> None:
-        t = stamp_seconds(stamp)
-        if self._last_stamp is not None and t > self._last_stamp:
-            dt = t - self._last_stamp
-            if dt < 5.0:                      # a pause (a bag restarted) is not a frame period
-                self._frame_period += 0.2 * (dt - self._frame_period)
-        self._last_stamp = t if t > 0 else None
-
-    def _update_bookkeeping(self, result: FrameResult) -> None:
-        """Ages (frames since birth) and frames_lost of every track, tentative ones included."""
-        tracks = self._tracker.tracks
-        alive = set()
-        for tid, hits in zip(tracks.ids.tolist(), tracks.hits.tolist(), strict=True):
-            alive.add(tid)
-            if tid not in self._born:
-                self._born[tid] = result.frame
-                self._lost[tid] = 0
-            else:
-                self._lost[tid] = 0 if hits > self._hits.get(tid, 0) else self._lost[tid] + 1
-            self._hits[tid] = hits
-        for d in (self._born, self._hits, self._lost):
-            for tid in [k for k in d if k not in alive]:
-                del d[tid]
 
     def _check_persons(self, header: Any, result: FrameResult,
                        pose: np.ndarray | None) -> np.ndarray:
@@ -577,68 +407,6 @@ class MotPlannerNode(Node):
 
     # --- outputs ----------------------------------------------------------------------------
 
-    def _track_array(self, header: Any, result: FrameResult, persons: np.ndarray) -> Any:
-        out = TrackArray(header=header)
-        fps = 1.0 / self._frame_period
-        jac = np.diag([1.0, 1.0, 1.0, fps, fps, fps])       # px/frame -> px/s
-        attended = set(result.attended_ids.tolist())
-        tracks = []
-        for i, tid in enumerate(result.ids.tolist()):
-            x = result.states[i]
-            box = result.boxes[i]
-            cov = jac @ result.covariances[i] @ jac
-            tracks.append(Track(
-                id=int(tid), label=LABEL_PERSON if persons[i] else LABEL_IMPLAUSIBLE,
-                center_u=float(box[0] + box[2] / 2), center_v=float(box[1] + box[3] / 2),
-                width=float(box[2]), height=float(box[3]), scale=float(x[2]),
-                velocity_u=float(x[3] * fps), velocity_v=float(x[4] * fps),
-                velocity_scale=float(x[5] * fps), covariance=[float(c) for c in cov.ravel()],
-                attended=tid in attended,
-                age=int(result.frame - self._born.get(tid, result.frame)),
-                frames_lost=int(self._lost.get(tid, 0))))
-        out.tracks = tracks
-        return out
-
-    def _attention(self, header: Any, result: FrameResult, size: tuple[int, int]) -> Any:
-        width, height = size
-        rois, ids = [], []
-        for k, reg in enumerate(result.regions):
-            x0, y0 = int(max(math.floor(reg[0]), 0)), int(max(math.floor(reg[1]), 0))
-            x1, y1 = int(min(math.ceil(reg[2]), width)), int(min(math.ceil(reg[3]), height))
-            rois.append(RegionOfInterest(x_offset=x0, y_offset=y0, width=max(x1 - x0, 0),
-                                         height=max(y1 - y0, 0)))
-            ids.append(0 if result.full_frame or k >= len(result.attended_ids)
-                       else int(result.attended_ids[k]))
-        fraction = 1.0 if result.full_frame else result.processed_fraction
-        cfg = self._tracker.cfg.planner
-        return AttentionRegions(header=header, regions=rois, track_ids=ids,
-                                budget_fraction=float(fraction), k_max=int(cfg.k_max),
-                                s_max=float(cfg.s_max), planning_time_ms=1e3 * result.plan_s)
-
-    def _overlay(self, image: np.ndarray, encoding: str, result: FrameResult,
-                 persons: np.ndarray) -> np.ndarray:
-        rgb = cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if encoding == 'bgr8' else image.copy()
-        colour = (0, 255, 255) if result.full_frame else (255, 220, 0)
-        for reg in result.regions:
-            x0, y0 = int(reg[0]), int(reg[1])
-            x1, y1 = int(min(reg[2], rgb.shape[1])) - 1, int(min(reg[3], rgb.shape[0])) - 1
-            cv2.rectangle(rgb, (x0, y0), (x1, y1), colour, 1)
-        for tid, box, person in zip(result.ids.tolist(), result.boxes, persons.tolist(),
-                                    strict=True):
-            x, y, w, h = (int(round(v)) for v in box)
-            colour = (0, 255, 0) if person else (150, 150, 150)   # grey: not on the floor
-            cv2.rectangle(rgb, (x, y), (x + w, y + h), colour, 2)
-            cv2.putText(rgb, str(tid), (x + 2, max(y - 4, 10)), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                        colour, 1, cv2.LINE_AA)
-        return rgb
-
-    def _gaze_tracks(self, result: FrameResult) -> np.ndarray:
-        """Mask of the reported tracks allowed to steer the gaze (gaze_min_hits, gaze_min_age)."""
-        ages = np.array([result.frame - self._born.get(int(i), result.frame)
-                         for i in result.ids], dtype=np.int64)
-        return (result.hits >= int(self._p['gaze_min_hits'])) & (
-            ages >= int(self._p['gaze_min_age']))
-
     def _send_gaze(self, header: Any, result: FrameResult, pose: np.ndarray | None,
                    persons: np.ndarray) -> None:
         """Pursuit of the established (gaze_min_hits, gaze_min_age), plausible (persons)
@@ -648,7 +416,9 @@ class MotPlannerNode(Node):
         frame."""
         if self._in_saccade:
             return
-        steer = self._gaze_tracks(result) & persons
+        steer = self._book.established(result.ids.tolist(), result.hits, result.frame,
+                                       int(self._p['gaze_min_hits']),
+                                       int(self._p['gaze_min_age'])) & persons
         if not steer.any():
             return
         now = self.get_clock().now().nanoseconds * 1e-9      # sim time in the graph
@@ -661,21 +431,10 @@ class MotPlannerNode(Node):
             self._warn_throttled(
                 'gaze', f'{self._image_topic}: images have no frame_id: no gaze commands')
             return
-        boxes = result.boxes[steer]
-        centres = boxes[:, :2] + boxes[:, 2:] / 2.0
-        u, v = centres.mean(axis=0)
-        cmd = GazeCommand(mode=GazeCommand.MODE_FIXATION_POINT,
-                          motion=GazeCommand.MOTION_PURSUIT, source=SOURCE,
-                          priority=int(self._p['gaze_priority']), hold_time=0.0)
-        cmd.header.frame_id = header.frame_id
-        cmd.header.stamp = self.get_clock().now().to_msg()
-        p = back_project(float(u), float(v), self._k, float(self._p['gaze_depth_m']))
-        if pose is not None:
-            q = pose[:3, :3] @ np.asarray(p) + pose[:3, 3]
-            p = float(q[0]), float(q[1]), float(q[2])
-            cmd.header.frame_id = self._p['world_frame'].lstrip('/')
-        cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = p
-        self._gaze_pub.publish(cmd)
+        p = gaze_point(result.boxes[steer], self._k, float(self._p['gaze_depth_m']), pose)
+        frame_id = header.frame_id if pose is None else self._p['world_frame'].lstrip('/')
+        self._gaze_pub.publish(messages.gaze_command(
+            frame_id, self.get_clock().now().to_msg(), int(self._p['gaze_priority']), p))
         self._last_gaze = now
         self.gaze_commands += 1
 
