@@ -116,3 +116,25 @@ def gaze_command(point: np.ndarray, p: dict[str, Any], stamp: Any) -> Any:
     cmd.header.stamp = stamp
     cmd.fixation_point.x, cmd.fixation_point.y, cmd.fixation_point.z = (float(v) for v in point)
     return cmd
+
+
+def pair_problem(left_shape: tuple[int, ...], right_shape: tuple[int, ...],
+                 k: dict[str, np.ndarray], sizes: dict[str, tuple[int, int]],
+                 frames: dict[str, str], info_topics: dict[str, str]) -> tuple[str, str] | None:
+    """(reason, detail) of why a pair cannot be fused before its poses are looked up, or None:
+    image shapes, each eye's K and camera_info size (k, sizes by eye), the images' frame_ids;
+    info_topics: the resolved camera_info topics, for the details."""
+    if left_shape != right_shape:
+        return SIZES_DIFFER, (f'left image {left_shape[1]}x{left_shape[0]} and '
+                              f'right {right_shape[1]}x{right_shape[0]} differ')
+    missing = [e for e in EYES if e not in k]
+    if missing:
+        return NO_CAMERA_INFO, f'waiting for {" and ".join(info_topics[e] for e in missing)}'
+    h, w = left_shape[:2]
+    for eye in EYES:
+        if sizes[eye] not in ((w, h), (0, 0)):
+            return INFO_SIZE_MISMATCH, (f'{info_topics[eye]} is for {sizes[eye][0]}x'
+                                        f'{sizes[eye][1]} images, got {w}x{h}')
+    if not all(frames.values()):
+        return NO_FRAME_ID, 'an image has no frame_id: no camera pose'
+    return None

@@ -110,6 +110,7 @@ from stereo_ses_node.messages import (  # noqa: F401 (re-exported: tests read th
     cells_array,
     gaze_command,
     image_problem,
+    pair_problem,
     points_array,
 )
 from stereo_ses_node.params import (  # noqa: F401
@@ -376,32 +377,17 @@ class StereoSesNode(Node):
     def _prepare(self, pair: Pair) -> tuple[np.ndarray, np.ndarray, StereoRig, np.ndarray] | None:
         """(left, right, rig in the left optical frame, ego <- left) or None (skipped, logged)."""
         left, right = image_to_numpy(pair.left), image_to_numpy(pair.right)
-        if left.shape != right.shape:
-            self._skip(pair, SIZES_DIFFER, f'left image {left.shape[1]}x{left.shape[0]} and '
-                                           f'right {right.shape[1]}x{right.shape[0]} differ')
+        with self._lock:
+            k = dict(self._k)
+            sizes = dict(self._info_size)
+        frames = {e: getattr(pair, e).header.frame_id for e in EYES}
+        problem = pair_problem(left.shape, right.shape, k, sizes, frames, self._info_topics)
+        if problem:
+            self._skip(pair, *problem)
             return None
         # the pipeline's colours and grey conversion expect RGB
         left = left[..., ::-1] if pair.left.encoding == 'bgr8' else left
         right = right[..., ::-1] if pair.right.encoding == 'bgr8' else right
-        with self._lock:
-            k = dict(self._k)
-            sizes = dict(self._info_size)
-        missing = [e for e in EYES if e not in k]
-        if missing:
-            self._skip(pair, NO_CAMERA_INFO,
-                       f'waiting for {" and ".join(self._info_topics[e] for e in missing)}')
-            return None
-        h, w = left.shape[:2]
-        for eye in EYES:
-            if sizes[eye] not in ((w, h), (0, 0)):
-                self._skip(pair, INFO_SIZE_MISMATCH, f'{self._info_topics[eye]} is for '
-                                                     f'{sizes[eye][0]}x{sizes[eye][1]} images, '
-                                                     f'got {w}x{h}')
-                return None
-        frames = {e: getattr(pair, e).header.frame_id for e in EYES}
-        if not all(frames.values()):
-            self._skip(pair, NO_FRAME_ID, 'an image has no frame_id: no camera pose')
-            return None
         try:
             # the poses when the images were taken, not the latest: the head may have moved on
             # (1 rad/s of pursuit is 2.9 deg per 50 ms); both at the left image's stamp (the
