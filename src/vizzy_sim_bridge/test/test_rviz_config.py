@@ -34,9 +34,10 @@ def _node_module(package: str, executable: str) -> Path:
     return SRC / package / (match.group(1).replace('.', '/') + '.py')
 
 
-def _constants(tree: ast.Module) -> dict[str, Any]:
-    """Module-level NAME = <expression of constants> assignments, evaluated in order."""
-    names: dict[str, Any] = dict(IMPORTED)
+def _constants(tree: ast.Module, names: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Module-level NAME = <expression of constants> assignments, evaluated in order (on top of
+    names)."""
+    names = dict(IMPORTED if names is None else names)
     for stmt in tree.body:
         if isinstance(stmt, ast.Assign) and all(isinstance(t, ast.Name) for t in stmt.targets):
             try:
@@ -84,7 +85,12 @@ def graph_publishers() -> dict[str, dict[str, Any]]:
     for spec in graph['nodes']:
         path = _node_module(spec['package'], spec['executable'])
         tree = ast.parse(path.read_text(), str(path))
-        names = _constants(tree)
+        # a node imports its topic names from its package's modules (parameters.py, ...)
+        names: dict[str, Any] = dict(IMPORTED)
+        for module in sorted(path.parent.glob('*.py')):
+            if module != path:
+                names = _constants(ast.parse(module.read_text(), str(module)), names)
+        names = _constants(tree, names)
         for call in ast.walk(tree):
             if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Attribute)
                     and call.func.attr == 'create_publisher'):
@@ -140,8 +146,9 @@ def test_every_topic_in_the_rviz_config_is_published_by_the_graph() -> None:
             assert pub['latched'], f'{topic}: {pub["node"]} does not publish transient local'
         if display.get('Color Transformer') == 'Intensity':   # colour by a field of the cloud
             field = display['Channel Name']
-            assert re.search(rf"""\(\s*['"]{field}['"]\s*,""", pub['source'].read_text()), (
-                f'{topic}: no field {field!r} in {pub["source"].name}')
+            sources = sorted(pub['source'].parent.rglob('*.py'))   # the node's package
+            assert any(re.search(rf"""\(\s*['"]{field}['"]\s*,""", f.read_text())
+                       for f in sources), f'{topic}: no field {field!r} in {pub["node"]}'
 
 
 def test_the_view_is_in_a_head_frame_and_shows_the_head() -> None:

@@ -6,7 +6,6 @@ active_vision_msgs/TrackArray for the walkers). sim_node.py publishes them."""
 from __future__ import annotations
 
 import array
-import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -23,16 +22,9 @@ CameraInfo = message('sensor_msgs/msg/CameraInfo')
 Marker = message('visualization_msgs/msg/Marker')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 Point = message('geometry_msgs/msg/Point')
-TimeMsg = message('builtin_interfaces/msg/Time')
 Track = message('active_vision_msgs/msg/Track')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
-
-
-def stamp_msg(t: float) -> Any:
-    """builtin_interfaces/Time of t [s]."""
-    sec = math.floor(t)
-    return TimeMsg(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
 
 def float_seq(values: Any) -> Any:

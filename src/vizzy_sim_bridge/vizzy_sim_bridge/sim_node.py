@@ -56,6 +56,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from vizzy_runtime.convert import stamp_msg
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     declare_parameters,
@@ -94,7 +95,6 @@ from vizzy_sim_bridge.messages import (  # noqa: F401 (box_corners, image_box: r
     object_markers,
     pedestrian_markers,
     pedestrian_tracks,
-    stamp_msg,
     transform_messages,
 )
 from vizzy_sim_bridge.parameters import (  # noqa: F401 (READ_ONLY, checks: re-exported)
