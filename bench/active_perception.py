@@ -121,6 +121,8 @@ class Run:
     samples: list[dict[str, Any]] = field(default_factory=list)
     found_target_s: float | None = None
     saccades_to_target: int | None = None
+    saccades_by_source: dict[str, int] = field(default_factory=dict)
+    min_target_deg: float | None = None      # visual search: the axis's closest approach
 
 
 class BenchNode(Node):
@@ -153,6 +155,8 @@ class BenchNode(Node):
                 return
             if msg.in_saccade and not run.in_saccade:
                 run.saccades += 1
+                source = str(msg.active_source) or '?'
+                run.saccades_by_source[source] = run.saccades_by_source.get(source, 0) + 1
             run.in_saccade = bool(msg.in_saccade)
 
     def _on_joints(self, msg: Any) -> None:
@@ -246,12 +250,13 @@ def map_objects(last_map: Any, truth: list[Any]) -> list[dict[str, Any]]:
     return out
 
 
-def on_target(joints: np.ndarray, target: np.ndarray) -> bool:
-    """Whether the left camera's optical axis points within TARGET_DEG of target (base_link)."""
+def target_deg(joints: np.ndarray, target: np.ndarray) -> float:
+    """The angle [deg] between the left camera's optical axis and the direction to target
+    (base_link); the target is fixated when it is within TARGET_DEG."""
     pose = frames_in_base(joints.tolist())[CAMERA_FRAMES['left']]
     d = target - pose[:3, 3]
     cos = float(pose[:3, 2] @ d / max(np.linalg.norm(d), 1e-9))
-    return cos >= math.cos(math.radians(TARGET_DEG))
+    return math.degrees(math.acos(min(max(cos, -1.0), 1.0)))
 
 
 def random_saccade(node: BenchNode, rng: np.random.Generator) -> None:
@@ -315,9 +320,12 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
             def on_tick(t: float) -> None:
                 with node.lock:
                     joints, moving = run.joints, run.in_saccade
-                if (target is not None and run.found_target_s is None and joints is not None
-                        and not moving and on_target(joints, target)):
-                    run.found_target_s, run.saccades_to_target = t, run.saccades
+                if target is not None and joints is not None and not moving:
+                    deg = target_deg(joints, target)
+                    if run.min_target_deg is None or deg < run.min_target_deg:
+                        run.min_target_deg = deg
+                    if run.found_target_s is None and deg <= TARGET_DEG:
+                        run.found_target_s, run.saccades_to_target = t, run.saccades
                 if config == 'random_gaze' and t >= next_random[0]:
                     next_random[0] = t + RANDOM_PERIOD_S
                     random_saccade(node, rng)
@@ -347,7 +355,8 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
         'late_ticks': conductor.late_ticks, 'exit_codes': codes,
         'cpu_s_by_node': used, 'cpu_robot_s': round(sum(v for n, v in used.items()
                                                         if n != 'sim'), 3),
-        'saccades': run.saccades, 'eye_bytes': run.eye_bytes, 'eye_images': run.eye_images,
+        'saccades': run.saccades, 'saccades_by_source': run.saccades_by_source,
+        'eye_bytes': run.eye_bytes, 'eye_images': run.eye_images,
         'samples': run.samples,
     }
     result['final_objects'] = map_objects(run.last_map, truth)
@@ -357,6 +366,8 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
     if scene == 'visual_search':
         result['s_to_target'] = run.found_target_s
         result['saccades_to_target'] = run.saccades_to_target
+        result['min_target_deg'] = (None if run.min_target_deg is None
+                                    else round(run.min_target_deg, 2))
     if scene == 'pedestrians':
         result.update(mot_scores(run))
     return result
@@ -417,6 +428,7 @@ def summarize_runs(results: list[dict[str, Any]], seconds: float) -> dict[str, A
             out[f'{prefix}_s_to_target'] = mean([r['s_to_target'] for r in runs])
             out[f'{prefix}_saccades_to_target'] = mean([r['saccades_to_target'] for r in runs])
             out[f'{prefix}_found_target'] = sum(r['s_to_target'] is not None for r in runs)
+            out[f'{prefix}_min_target_deg'] = mean([r.get('min_target_deg') for r in runs])
         if scene == 'pedestrians':
             out[f'{prefix}_mota'] = mean([r['mota'] for r in runs])
             out[f'{prefix}_idf1'] = mean([r['idf1'] for r in runs])
