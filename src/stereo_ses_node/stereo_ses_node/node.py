@@ -1,62 +1,18 @@
 """The `stereo_ses` node (thesis chapter 3): foveated stereo into the Sensory Ego-Sphere, and gaze.
 
-Topic names are relative (in: `left/image_raw`, `left/camera_info`, `right/...`, `gaze/state`);
-the graph remaps the camera inputs to the simulator's, so below are the resolved defaults.
-
-Subscribes
-  /vizzy/{left,right}/image_raw   sensor_msgs/Image rgb8/bgr8 (RELIABLE keep-last 5, see QoS
-                                  below), paired by stamp
-  /vizzy/{left,right}/camera_info sensor_msgs/CameraInfo: K of each camera
-  /tf, /tf_static                 camera poses at each pair's stamp (the left image's):
-                                  left optical frame in `ego_frame`, right in left
-                                  (vizzy_runtime.tf, each /tf edge interpolated at the stamp; the
-                                  worker waits up to TF_WAIT_S for /tf that covers it)
-  /gaze/state                     active_vision_msgs/GazeState: nothing is fused while in_saccade
-                                  (nor pairs stamped before the last saccade ended)
-
-Per stereo pair (core.stereo.StereoPipeline): SGBM at the resolution the sensor needs (the
-Cartesian RF grid; for the log-polar sensor full resolution in its fovea and coarser pyramid
-levels outward, core.multires.FoveatedSGBM) over the disparities of points at depth_range_m
-(disparity_range 'geometry', from camera_info and tf; or the fixed min/num_disparities),
-narrowed coarse-to-fine; matches off the epipolar line (a verged pair's periphery) dropped;
-mid-point triangulation (Eq. 3.8) and the Unscented Transform (Eqs. 3.9-3.18) in the LEFT
-camera's optical frame; then
-SensoryEgoSphere.fuse with the ego <- left transform (Eqs. 3.22-3.35). Publishes
-
-  /stereo/points  sensor_msgs/PointCloud2, frame = the left image's frame_id (the left camera
-                  optical frame), the image's stamp; fields x y z [m] (float32), rgb (float32
-                  packed 0x00RRGGBB, PCL style), cxx cxy cxz cyy cyz czz [m^2] (float32, the UT
-                  covariance, Eq. 3.18, same frame), information (-log|Sigma|, Eq. 3.45)
-  /ses/cells      sensor_msgs/PointCloud2, frame `ego_frame`; fields x y z [m] (the cell means),
-                  information (-log|Sigma|, Eq. 3.45; colour by it), sigma_r [m] (the reward
-                  standard deviation of Eq. 3.39, square-rooted), observations (float32 count);
-                  the observed cells only unless publish_unobserved_cells; at cells_rate_hz
-  /gaze/command   active_vision_msgs/GazeCommand (if publish_gaze): MODE_FIXATION_POINT in
-                  `ego_frame`, MOTION_SACCADE, source 'stereo_ses', priority gaze_priority (20),
-                  hold_time: the chosen cell (core.decision.choose_fixation, UCB / PI / EI) once
-                  decision_period_s has passed since the last command AND frames_per_fixation
-                  frames were fused since the last saccade settled
-  /diagnostics    diagnostic_msgs/DiagnosticArray, about 1 Hz: the node's input health (below)
-
-Processing never blocks the executor: callbacks only store messages; a worker thread takes the
-newest complete pair (older pairs are dropped: newest wins, one in flight) at most max_rate_hz
-times a second of the images' own time (their stamps; sim time in the graph), so the node
-leaves CPU to the rest of the graph (a 640x480 log-polar pair costs about 85 ms of one core,
-mostly the UT of ~34,000 points; the matching about 13 ms). Bad input
-is refused and the ego-sphere stays consistent (SensoryEgoSphere.fuse validates everything
-before it changes state; degenerate geometry and NaN disparities inside a frame are dropped
-point by point, StereoFrame.rejected).
-
-Refused inputs are counted by vizzy_runtime.input_health.InputHealth (self.input_health;
-logging and /diagnostics as its docstring says); the reasons (counter keys): messages.py.
-A pair's images are accepted when it was fused; held (not refused) when deliberately not fused:
-'in saccade' (frames_in_saccade) or 'max_rate_hz' (the rate limit, pairs_dropped); a pair
-replaced by a newer one before the worker took it (pairs_dropped) is neither. /diagnostics turns
-WARN when /stereo/points has not gone out for OUTPUT_STALL_S (or three capped pairs) while images
-arrive. Gaze states are always accepted.
-
-QoS: unlike REP 2003's sensor-data default, the four stereo inputs subscribe RELIABLE keep-last 5:
-best effort lost most pairs of fragmented VGA images (35 of 150 pairs vs 149 reliable, measured).
+Stereo pairs (paired by stamp) -> core.stereo.StereoPipeline (SGBM, mid-point triangulation,
+the Unscented Transform) -> core.ses.SensoryEgoSphere.fuse -> the next fixation (UCB / PI / EI,
+core.fixation.next_fixation). Callbacks only store messages; a worker thread processes the newest
+pair (rig.py: its set-up). Topics (relative names; graph.yaml remaps them):
+  in  left|right/image_raw    sensor_msgs/Image rgb8/bgr8 (RELIABLE keep-last 5)
+  in  left|right/camera_info  sensor_msgs/CameraInfo: K of each camera
+  in  /tf, /tf_static         ego <- left optical frame and left <- right, at each pair's stamp
+  in  gaze/state              active_vision_msgs/GazeState: nothing is fused during a saccade
+  out stereo/points           sensor_msgs/PointCloud2: UT points and covariances, left optical frame
+  out ses/cells               sensor_msgs/PointCloud2: the ego-sphere's cells in `ego_frame`
+  out gaze/command            active_vision_msgs/GazeCommand: the chosen fixation (publish_gaze)
+  out /diagnostics            diagnostic_msgs/DiagnosticArray: input health (reasons: messages.py)
+Parameters: params.py. See docs/stereo_ses.md for the rest.
 """
 
 from __future__ import annotations
@@ -68,43 +24,29 @@ from typing import Any
 
 import numpy as np
 
-from stereo_ses_node.core.decision import Decision, choose_fixation
-from stereo_ses_node.core.fixation import (
-    SACCADE_START_TIMEOUT_S,
-    FixationPolicy,
-    clamp_distance,
-    fixation_candidates,
-)
+from stereo_ses_node.core.decision import Decision
+from stereo_ses_node.core.fixation import SACCADE_START_TIMEOUT_S, FixationPolicy, next_fixation
 from stereo_ses_node.core.information import information
-from stereo_ses_node.core.multires import DisparityWindow, disparity_window
+from stereo_ses_node.core.multires import DisparityWindow
 from stereo_ses_node.core.pairing import Pair, StereoPairer
 from stereo_ses_node.core.ses import FusionReport
-from stereo_ses_node.core.stereo import SGBMParams, StereoPipeline
-from stereo_ses_node.core.ut import StereoRig, UTParams
-from stereo_ses_node.messages import (  # noqa: F401 (re-exported: tests read the node's counter
-    # keys, topics, message builders and parameter table through this module)
-    CELL_DTYPE,
+from stereo_ses_node.core.stereo import StereoPipeline
+from stereo_ses_node.core.ut import StereoRig
+from stereo_ses_node.messages import (
     CELLS_TOPIC,
-    ENCODINGS,
     EYES,
     GAZE_COMMAND_TOPIC,
     GAZE_STATE_TOPIC,
     IMAGE_TOPICS,
     IN_SACCADE,
-    INFO_SIZE_MISMATCH,
     INFO_TOPICS,
-    NO_CAMERA_INFO,
     NO_CAMERA_POSE,
     NO_CORRESPONDENCES,
-    NO_FRAME_ID,
     NO_PARTNER,
     PAIR_FAILED,
-    PAIR_REASONS,
-    POINT_DTYPE,
     POINTS_TOPIC,
     RATE_CAP,
     REPEATED_STAMP,
-    SIZES_DIFFER,
     SOURCE,
     UNUSABLE_K,
     cells_array,
@@ -113,33 +55,24 @@ from stereo_ses_node.messages import (  # noqa: F401 (re-exported: tests read th
     pair_problem,
     points_array,
 )
-from stereo_ses_node.params import (  # noqa: F401
-    BIAS_NAMES,
-    DISPARITY_RANGES,
+from stereo_ses_node.params import (
     PARAMETERS,
     PIPELINE_PARAMETERS,
-    SENSORS,
     SES_PARAMETERS,
     check_all,
     check_parameter,
     new_ses,
-    user_gmm,
 )
-from vizzy_runtime.convert import (  # noqa: F401 (re-exported: the image reasons are this
-    # node's counter keys too)
-    EMPTY_IMAGE,
-    IMAGE_REASONS,
-    SHORT_DATA,
-    SHORT_STEP,
-    TOO_LARGE,
-    UNCONVERTIBLE,
-    UNSUPPORTED_ENCODING,
-    ConversionError,
-    array_to_pointcloud2,
-    camera_k,
-    image_to_numpy,
-    stamp_seconds,
+from stereo_ses_node.rig import (
+    REPEATED,
+    RESTARTED,
+    as_rgb,
+    geometry_window,
+    new_pipeline,
+    stamp_verdict,
+    stereo_rig,
 )
+from vizzy_runtime.convert import array_to_pointcloud2, camera_k, image_to_numpy, stamp_seconds
 from vizzy_runtime.input_health import InputHealth, ThrottledWarnings
 from vizzy_runtime.node_tools import (
     LatestWorker,
@@ -161,7 +94,8 @@ GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 
 # Reliable, not sensor data (REP 2003's default): a best-effort reader never repairs a lost fragment
-# of a 921 KB image, and a stereo pair needs both images (module docstring).
+# of a 921 KB image, and a stereo pair needs both images (best effort got 35 of 150 VGA pairs,
+# reliable 149: docs/stereo_ses.md).
 STEREO_QOS = QoSProfile(depth=5)
 # The worker waits this long [s] for the /tf that covers a pair's stamp (it may arrive just after
 # the images); then the pair is skipped ('no camera pose').
@@ -219,22 +153,13 @@ class StereoSesNode(Node):
                                        list(self._image_topics.values()), self._output_stall_s)
         self._info_topics = {e: self.resolve_topic_name(INFO_TOPICS[e]) for e in EYES}
         self._gaze_state_topic = self.resolve_topic_name(GAZE_STATE_TOPIC)
-        self._image_subs: dict[str, Any] = {}
-        self._info_subs: dict[str, Any] = {}
         # an exception in a callback is counted as a refusal of its topic (and logged there)
-        for eye in EYES:
-            self._image_subs[eye] = self.create_subscription(
-                Image, IMAGE_TOPICS[eye],
-                guarded(self, 'failed on an image',
-                        lambda msg, eye=eye: self._on_image(eye, msg),
-                        topic=self._image_topics[eye]),
-                STEREO_QOS)
-            self._info_subs[eye] = self.create_subscription(
-                CameraInfo, INFO_TOPICS[eye],
-                guarded(self, 'failed on a camera_info',
-                        lambda msg, eye=eye: self._on_camera_info(eye, msg),
-                        topic=self._info_topics[eye]),
-                STEREO_QOS)
+        self._image_subs = {eye: self.create_subscription(Image, IMAGE_TOPICS[eye], guarded(
+            self, 'failed on an image', lambda msg, eye=eye: self._on_image(eye, msg),
+            topic=self._image_topics[eye]), STEREO_QOS) for eye in EYES}
+        self._info_subs = {eye: self.create_subscription(CameraInfo, INFO_TOPICS[eye], guarded(
+            self, 'failed on a camera_info', lambda msg, eye=eye: self._on_camera_info(eye, msg),
+            topic=self._info_topics[eye]), STEREO_QOS) for eye in EYES}
         self._gaze_state_sub = self.create_subscription(
             GazeState, GAZE_STATE_TOPIC,
             guarded(self, 'failed on a state', self._on_gaze_state,
@@ -243,35 +168,16 @@ class StereoSesNode(Node):
         self._cells_tick = guarded(self, 'ego-sphere cells failed', self._on_cells_timer)
         self._cells_timer = self.create_timer(1.0 / self._p['cells_rate_hz'], self._cells_tick)
         self._worker = LatestWorker('stereo_ses_worker', self._work)
-        p = self._p
+        p, images, infos = self._p, self._image_subs, self._info_subs
         self.get_logger().info(
-            f'stereo on {self._image_subs["left"].topic_name} + '
-            f'{self._image_subs["right"].topic_name} (camera info '
-            f'{self._info_subs["left"].topic_name} + {self._info_subs["right"].topic_name}) '
-            f'with a {p["sensor"]} '
+            f'stereo on {images["left"].topic_name} + {images["right"].topic_name} (camera info '
+            f'{infos["left"].topic_name} + {infos["right"].topic_name}) with a {p["sensor"]} '
             f'sensor of {p["n_rf"]}x{p["n_rf"]} RFs at most {p["max_rate_hz"]:g} Hz -> '
             f'{self._points_pub.topic_name}; ego-sphere of {p["n_cells"]} cells ({p["bias"]} '
             f'bias) in {p["ego_frame"]!r} -> {self._cells_pub.topic_name}; gaze '
             f'{p["acquisition"]} on {self._gaze_pub.topic_name}'
             f'{" alpha " + str(p["ucb_alpha"]) if p["acquisition"] == "ucb" else ""} '
             f'{"on" if p["publish_gaze"] else "off"} (priority {p["gaze_priority"]})')
-
-    # the policy's state, as tests read (and set) it on the node
-    @property
-    def _in_saccade(self) -> bool:
-        return self._policy.in_saccade
-
-    @property
-    def _refused(self) -> set[int]:
-        return self._policy.refused
-
-    @property
-    def _frames_since_settle(self) -> int:
-        return self._policy.frames_since_settle
-
-    @_frames_since_settle.setter
-    def _frames_since_settle(self, value: int) -> None:
-        self._policy.frames_since_settle = value
 
     # --- set-up ---------------------------------------------------------------------------------
 
@@ -284,7 +190,6 @@ class StereoSesNode(Node):
         if 'cells_rate_hz' in changed:
             self._cells_timer = replace_timer(self, self._cells_timer,
                                               1.0 / changed['cells_rate_hz'], self._cells_tick)
-
 
     # --- inputs (executor thread: store only) ---------------------------------------------------
 
@@ -385,49 +290,30 @@ class StereoSesNode(Node):
         if problem:
             self._skip(pair, *problem)
             return None
-        # the pipeline's colours and grey conversion expect RGB
-        left = left[..., ::-1] if pair.left.encoding == 'bgr8' else left
-        right = right[..., ::-1] if pair.right.encoding == 'bgr8' else right
+        left, right = as_rgb(left, pair.left.encoding), as_rgb(right, pair.right.encoding)
         try:
-            # the poses when the images were taken, not the latest: the head may have moved on
-            # (1 rad/s of pursuit is 2.9 deg per 50 ms); both at the left image's stamp (the
-            # right one's is within max_stamp_skew_s)
-            ego_left = self._tf.lookup_transform(self._p['ego_frame'], frames['left'],
-                                                 pair.stamp, timeout_s=TF_WAIT_S)
-            left_right = self._tf.lookup_transform(frames['left'], frames['right'], pair.stamp,
-                                                   timeout_s=TF_WAIT_S)
-            rig = StereoRig.create(k['left'], k['right'], np.eye(4), left_right)
+            rig, ego_left = stereo_rig(self._tf, self._p['ego_frame'], frames, pair.stamp, k,
+                                       TF_WAIT_S)
         except (LookupError, ValueError) as exc:
             self._skip(pair, NO_CAMERA_POSE, f'no usable camera poses: {exc}')
             return None
-        return np.ascontiguousarray(left), np.ascontiguousarray(right), rig, ego_left
+        return left, right, rig, ego_left
 
     def _pipeline_for(self, width: int, height: int) -> StereoPipeline:
         with self._lock:
             dirty, self._pipeline_dirty = self._pipeline_dirty, False
         pipe = self._pipeline
         if dirty or pipe is None or (pipe.width, pipe.height) != (width, height):
-            p = self._p
-            n = int(p['n_rf'])
-            pipe = StereoPipeline(width, height, p['sensor'], (n, n),
-                                  sgbm=SGBMParams(num_disparities=int(p['num_disparities']),
-                                                  min_disparity=int(p['min_disparity'])),
-                                  ut=UTParams(float(p['ut_alpha']), float(p['ut_beta']),
-                                              float(p['ut_kappa'])))
-            self._pipeline = pipe
-            self.get_logger().info(f'stereo pipeline: {p["sensor"]} sensor, {n}x{n} RFs on '
+            pipe = self._pipeline = new_pipeline(self._p, width, height)
+            n = int(self._p['n_rf'])
+            self.get_logger().info(f'stereo pipeline: {self._p["sensor"]} sensor, {n}x{n} RFs on '
                                    f'{width}x{height} images')
         return pipe
 
     def _window(self, rig: StereoRig, width: int, height: int) -> DisparityWindow | None:
         """The disparities to search on this pair (None: the fixed SGBM parameters' range)."""
-        p = self._p
-        if p['disparity_range'] != 'geometry':
-            return None
-        near, far = (float(v) for v in p['depth_range_m'])
         try:
-            return disparity_window(rig.k_left, rig.k_right, rig.pose_left, rig.pose_right,
-                                    width, height, near, far)
+            return geometry_window(self._p, rig, width, height)
         except ValueError as exc:
             self._warn_throttled('window', f'no disparity window from the geometry ({exc}): '
                                            f'searching the fixed min_disparity/num_disparities')
@@ -436,14 +322,12 @@ class StereoSesNode(Node):
     def _repeated(self, pair: Pair) -> bool:
         """Is pair stamped at or before the last fused pair (refused, counted, logged)?"""
         last = self._last_fused_stamp
-        if pair.stamp > last:
-            return False
-        if self._clock_s() < last:
-            # the node's clock went back before the last fused stamp: the simulation or a bag
-            # restarted, so these are new observations
+        verdict = stamp_verdict(pair.stamp, last, self._clock_s())
+        if verdict == RESTARTED:   # the clock went back: a restarted simulation or bag
             self.get_logger().info(f'time went back ({self._clock_s():.3f} s < last fused pair '
                                    f'{last:.3f} s): fusing from {pair.stamp:.3f} s on')
             self._last_fused_stamp = -math.inf
+        if verdict != REPEATED:
             return False
         self.pairs_repeated += 1
         for eye in EYES:
@@ -459,11 +343,7 @@ class StereoSesNode(Node):
             return
         with self._lock:
             in_saccade = self._policy.suppressed(pair.stamp)
-            if self._ses_dirty:
-                self._ses_dirty = False
-                rebuild = True
-            else:
-                rebuild = False
+            rebuild, self._ses_dirty = self._ses_dirty, False
         if rebuild:
             ses = new_ses(self._p)
             with self._ses_lock:
@@ -529,19 +409,13 @@ class StereoSesNode(Node):
         if not ready:
             return
         ses = self._ses
-        el = np.radians(p['elevation_limits_deg'])
         with self._lock:
             refused = list(self._policy.refused)
-        candidates = fixation_candidates(ses.mean, ses.directions, p['min_z_m'],
-                                         math.radians(p['azimuth_limit_deg']), (el[0], el[1]),
-                                         refused)
-        if not np.any(candidates):
+        chosen = next_fixation(ses, p, refused)
+        if chosen is None:
             self._warn_throttled('decision', 'no reachable cell above min_z_m: no fixation')
             return
-        decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
-                                   candidates=candidates)
-        dmin, dmax = p['fixation_distance_m']
-        point = clamp_distance(decision.fixation, dmin, dmax)
+        decision, point = chosen
         cmd = gaze_command(point, p, self.get_clock().now().to_msg())
         publish_from_thread(self, self._gaze_pub, cmd)
         with self._lock:

@@ -17,7 +17,13 @@ import pytest
 from stereo_ses_node import node as ses_node
 from stereo_ses_node.core.geometry import vergence_poses
 from stereo_ses_node.core.synthetic import plane_texture, render_plane
-from vizzy_runtime.convert import numpy_to_image, pointcloud2_to_array
+from stereo_ses_node.messages import NO_PARTNER, PAIR_FAILED, REPEATED_STAMP, UNUSABLE_K
+from vizzy_runtime.convert import (
+    SHORT_DATA,
+    UNSUPPORTED_ENCODING,
+    numpy_to_image,
+    pointcloud2_to_array,
+)
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import (
     Context,
@@ -253,8 +259,8 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     assert ses.frames_fused == 6 and ses.pairs_repeated == 1
     assert np.array_equal(ses._ses.n_obs, obs) and np.array_equal(ses._ses.info, info)
     left_topic = ses._image_subs['left'].topic_name
-    assert ses.input_health.refused()[(left_topic, ses_node.REPEATED_STAMP)] == 1
-    assert f'{left_topic}: refused: {ses_node.REPEATED_STAMP}' in capfd.readouterr().err
+    assert ses.input_health.refused()[(left_topic, REPEATED_STAMP)] == 1
+    assert f'{left_topic}: refused: {REPEATED_STAMP}' in capfd.readouterr().err
     n = len(rig.cells)
     assert wait_until(lambda: len(rig.cells) > n + 1, TIMEOUT, spin=executor)
     later = _cells(rig.cells[-1])
@@ -273,19 +279,19 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     # towards the next decision nor, its frames giving the chosen cell nothing, refuses the cell
     # (issue 26: restarting on every look left the node one decision in 30 s)
     with ses._lock:
-        ses._frames_since_settle = counted = 5
+        ses._policy.frames_since_settle = counted = 5
     cell = ses.last_decision.cell
     rig.state_pub.publish(GazeState(in_saccade=True, active_source='object_map'))
-    assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
+    assert wait_until(lambda: ses._policy.in_saccade, TIMEOUT, spin=executor)
     rig.state_pub.publish(GazeState(in_saccade=False, active_source='object_map'))
-    assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
-    assert ses._frames_since_settle == counted
+    assert wait_until(lambda: not ses._policy.in_saccade, TIMEOUT, spin=executor)
+    assert ses._policy.frames_since_settle == counted
     assert _feed(rig, ses, executor)
-    assert cell not in ses._refused and ses._ses.n_obs[cell] == 0
+    assert cell not in ses._policy.refused and ses._ses.n_obs[cell] == 0
     # in our own saccade nothing is fused and no command is sent
     cell = ses.last_decision.cell
     rig.state_pub.publish(GazeState(in_saccade=True, active_source='stereo_ses'))
-    assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
+    assert wait_until(lambda: ses._policy.in_saccade, TIMEOUT, spin=executor)
     fused, obs, sent = ses.frames_fused, ses._ses.n_obs.copy(), ses.gaze_commands
     for _ in range(2):
         assert _feed(rig, ses, executor)
@@ -293,22 +299,22 @@ def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
     assert np.array_equal(ses._ses.n_obs, obs) and ses.gaze_commands == sent
     # the saccade settles: fusion and decisions resume
     rig.state_pub.publish(GazeState(in_saccade=False, active_source='stereo_ses'))
-    assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
-    assert ses._frames_since_settle == 0
+    assert wait_until(lambda: not ses._policy.in_saccade, TIMEOUT, spin=executor)
+    assert ses._policy.frames_since_settle == 0
     assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
     # UCB alpha 100 explored an unobserved (prior) cell; the eyes never moved (no controller),
     # so the frame after the "saccade" gave it no observation: it is excluded, and the next
     # decision chooses another cell
-    assert ses._ses.n_obs[cell] == 0 and cell in ses._refused
+    assert ses._ses.n_obs[cell] == 0 and cell in ses._policy.refused
     assert wait_until(lambda: ses.gaze_commands == sent + 1, TIMEOUT, spin=executor)
     assert ses.last_decision.cell != cell
     # a pair stamped before the last saccade ended is not fused either (its poses are gone)
     rig.state_pub.publish(GazeState(in_saccade=True))
-    assert wait_until(lambda: ses._in_saccade, TIMEOUT, spin=executor)
+    assert wait_until(lambda: ses._policy.in_saccade, TIMEOUT, spin=executor)
     settled = GazeState(in_saccade=False)
     settled.header.stamp.sec = 1_000_000
     rig.state_pub.publish(settled)
-    assert wait_until(lambda: not ses._in_saccade, TIMEOUT, spin=executor)
+    assert wait_until(lambda: not ses._policy.in_saccade, TIMEOUT, spin=executor)
     suppressed, fused = ses.frames_in_saccade, ses.frames_fused
     assert _feed(rig, ses, executor)
     assert ses.frames_in_saccade == suppressed + 1 and ses.frames_fused == fused
@@ -448,9 +454,9 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     short.height = 2 * H                                      # more rows than the data holds
     rig.image_pubs['right'].publish(short)
     rig.image_pubs['left'].publish(rig.image('left', first + 1))  # its right never comes
-    expected = {(left_info, ses_node.UNUSABLE_K): 1,
-                (left, ses_node.UNSUPPORTED_ENCODING): 1,
-                (right, ses_node.SHORT_DATA): 1}
+    expected = {(left_info, UNUSABLE_K): 1,
+                (left, UNSUPPORTED_ENCODING): 1,
+                (right, SHORT_DATA): 1}
     assert wait_until(lambda: health.refused() == expected and len(ses._unpaired['left']) == 1,
                       TIMEOUT, spin=executor), health.refused()
     assert ses._k['left'][0, 0] == pytest.approx(F)           # the last good K stays in use
@@ -462,7 +468,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     assert wait_until(lambda: ses.frames_fused == fused + 1
                       and any(p.header.stamp.sec == 100 + first + 2 for p in rig.points),
                       TIMEOUT, spin=executor)
-    expected[(left, ses_node.NO_PARTNER)] = 1
+    expected[(left, NO_PARTNER)] = 1
     assert health.refused() == expected
     now = health.accepted()
     assert now[left] == accepted.get(left, 0) + 1 and now[right] == accepted.get(right, 0) + 1
@@ -474,17 +480,17 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     # /diagnostics: the node's status carries the counts
     name = ses.get_fully_qualified_name()
 
-    assert wait_until(lambda: reported_status(reports, name).get(f'{left}: {ses_node.NO_PARTNER}')
+    assert wait_until(lambda: reported_status(reports, name).get(f'{left}: {NO_PARTNER}')
                       == '1', TIMEOUT, spin=executor), reported_status(reports, name)
     values = reported_status(reports, name)
-    assert values[f'{left_info}: {ses_node.UNUSABLE_K}'] == '1'
-    assert values[f'{right}: {ses_node.SHORT_DATA}'] == '1'
+    assert values[f'{left_info}: {UNUSABLE_K}'] == '1'
+    assert values[f'{right}: {SHORT_DATA}'] == '1'
     # each first refusal logged once, naming topic and reason; nothing raised
     err = capfd.readouterr().err
-    assert err.count(f'{left_info}: refused: {ses_node.UNUSABLE_K}') == 1, err
-    assert f"{left}: refused: {ses_node.UNSUPPORTED_ENCODING}: 'yuv9'" in err, err
-    assert f'{right}: refused: {ses_node.SHORT_DATA}' in err, err
-    assert (f'{left}: refused: {ses_node.NO_PARTNER}: image stamped {100 + first + 1}.000 s'
+    assert err.count(f'{left_info}: refused: {UNUSABLE_K}') == 1, err
+    assert f"{left}: refused: {UNSUPPORTED_ENCODING}: 'yuv9'" in err, err
+    assert f'{right}: refused: {SHORT_DATA}' in err, err
+    assert (f'{left}: refused: {NO_PARTNER}: image stamped {100 + first + 1}.000 s'
             in err), err
     assert 'Traceback' not in err
     assert not any(reason.startswith('failed on') for _, reason in health.refused())
@@ -505,7 +511,7 @@ def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypat
     rig.image_pubs['left'].publish(rig.image('left', first + 3))
     rig.image_pubs['right'].publish(rig.image('right', first + 3))
     for topic in (left, right):
-        expected[(topic, f'{ses_node.PAIR_FAILED}: RuntimeError')] = 1
+        expected[(topic, f'{PAIR_FAILED}: RuntimeError')] = 1
     assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
         health.refused()
     assert ses.frames_skipped == skipped + 1

@@ -1,14 +1,18 @@
 """The gaze-decision bookkeeping of the stereo_ses node (ROS-free; not thread-safe: the node
 holds its lock around every call): saccadic suppression, when the next fixation may be chosen,
-and the cells not to choose again."""
+the cells not to choose again, and the
+next fixation among the rest."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from stereo_ses_node.core.decision import reachable_cells
+from stereo_ses_node.core.decision import Decision, choose_fixation, reachable_cells
+from stereo_ses_node.core.ses import SensoryEgoSphere
 
 # After a gaze command, frames do not count towards frames_per_fixation until the saccade has
 # started (in_saccade seen) or this long has passed (a tiny or refused movement).
@@ -102,3 +106,19 @@ def clamp_distance(point: np.ndarray, dmin: float, dmax: float) -> np.ndarray:
     """point moved along its direction into [dmin, dmax] of distance."""
     dist = float(np.linalg.norm(point))
     return point * (min(max(dist, dmin), dmax) / max(dist, 1e-9))
+
+
+def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any],
+                  refused: list[int]) -> tuple[Decision, np.ndarray] | None:
+    """(the cell the node's parameters p choose among the reachable cells above min_z_m not in
+    refused, its fixation point moved into fixation_distance_m), or None: no cell to fixate."""
+    el = np.radians(p['elevation_limits_deg'])
+    candidates = fixation_candidates(ses.mean, ses.directions, p['min_z_m'],
+                                     math.radians(p['azimuth_limit_deg']), (el[0], el[1]),
+                                     refused)
+    if not np.any(candidates):
+        return None
+    decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
+                               candidates=candidates)
+    dmin, dmax = p['fixation_distance_m']
+    return decision, clamp_distance(decision.fixation, dmin, dmax)
