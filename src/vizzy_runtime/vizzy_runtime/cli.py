@@ -1,8 +1,10 @@
 """`vizzy`: the ros2 verbs people know, for machines without ROS 2.
 
     vizzy run <package> <executable> [args] [--ros-args ...]
-    vizzy launch [graph.yaml] [--duration S] [--namespace /NS] [--grace S]
+    vizzy launch [graph.yaml] [key:=value ...] [--duration S] [--namespace /NS] [--grace S]
                  [--view-port P | --no-view]
+                 keys as ros2 launch vizzy_runtime graph.launch.py: scene:= (tabletop |
+                 visual_search | pedestrians), seed:=, params_file:=, namespace:=, use_sim_time:=
     vizzy view [--port 8765] [--host ADDR]            (Foxglove live view of the running graph)
     vizzy topic list [-t] | echo <topic> [type] [--once] | hz <topic> [--duration S]
               | info <topic> [-v] | pub <topic> <type> '<yaml>' [-r HZ] [-1 | -t N] [-w N]
@@ -88,9 +90,28 @@ def _standby_released() -> bool:
     return line.strip() == 'go'
 
 
+def launch_arguments(items: list[str], namespace: str = '') -> tuple[str | None, Any]:
+    """`vizzy launch`'s positionals: [graph.yaml] and ros2-launch-style key:=value arguments
+    (launch_args.VIZZY_LAUNCH_KEYS) -> (graph file or None, LaunchArgs); namespace: --namespace.
+    ValueError (LaunchError), one line, for an unknown key, a bad value or two graph files."""
+    from .launch_args import VIZZY_LAUNCH_KEYS, LaunchError, launch_args, split_key_values
+    graphs = [item for item in items if ':=' not in item]
+    if len(graphs) > 1:
+        raise LaunchError(f'launch: one graph file, got {len(graphs)} ({", ".join(graphs)}); '
+                          'launch arguments read key:=value')
+    values = split_key_values([item for item in items if ':=' in item], VIZZY_LAUNCH_KEYS)
+    if namespace and values.get('namespace', namespace) != namespace:
+        raise LaunchError(f'launch: --namespace {namespace} and namespace:={values["namespace"]} '
+                          'disagree: give one')
+    if namespace:
+        values['namespace'] = namespace
+    return (graphs[0] if graphs else None), launch_args(values)
+
+
 def cmd_launch(ns: argparse.Namespace) -> int:
     from .launcher import launch
-    launcher = launch(ns.graph, ns.duration, namespace=ns.namespace, grace_s=ns.grace,
+    graph, args = launch_arguments(ns.args, ns.namespace)
+    launcher = launch(graph, ns.duration, grace_s=ns.grace, args=args,
                       view_port=None if ns.no_view else ns.view_port)
     failed = launcher.failed()
     for name, code in failed.items():
@@ -237,8 +258,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=cmd_run)
 
     la = sub.add_parser('launch', help='start the graph, one process per node (like ros2 launch)')
-    la.add_argument('graph', nargs='?',
-                    help='graph YAML (default: vizzy_runtime config/graph.yaml)')
+    la.add_argument('args', nargs='*', metavar='[graph.yaml] [key:=value]',
+                    help='graph YAML (default: vizzy_runtime config/graph.yaml), then launch '
+                         'arguments as ros2 launch vizzy_runtime graph.launch.py takes them: '
+                         'scene:=tabletop|visual_search|pedestrians, seed:=N, params_file:=FILE '
+                         '(after every node\'s own files: its /** or <node> sections override '
+                         'them), namespace:=/NS, use_sim_time:=true|false')
     la.add_argument('--duration', type=positive_seconds, help='stop after this many seconds')
     la.add_argument('--namespace', default='',
                     help='put the whole graph in this namespace (e.g. /head2), like ros2 launch '
@@ -321,7 +346,12 @@ def _bag_error() -> type[Exception]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ns = build_parser().parse_args(argv)
+    parser = build_parser()
+    ns, extra = parser.parse_known_args(argv)
+    if extra and ns.verb == 'launch' and all(':=' in item for item in extra):
+        ns.args += extra   # key:=value after an option (`g.yaml --duration 5 scene:=x`)
+    elif extra:
+        parser.error(f'unrecognized arguments: {" ".join(extra)}')
     logging.basicConfig(level=logging.INFO, format='[%(levelname)s] %(message)s')
     try:
         return ns.func(ns)

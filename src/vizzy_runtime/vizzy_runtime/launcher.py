@@ -13,6 +13,10 @@ stays), and adds GRAPH_REMAPS to every node so that absolute /clock, /tf and /tf
 (rclpy's time source, tools) follow the namespace too: two graphs in /head1 and /head2 on one
 domain do not see each other. rcl applies a params file's bare `sim:` section to /sim only, so a
 namespaced node gets a copy of each file whose bare keys read `/**/sim` (namespace_proof_params).
+
+The launch arguments `scene:=`, `seed:=`, `params_file:=`, `namespace:=`, `use_sim_time:=` (`vizzy
+launch [graph.yaml] key:=value ...`, or ros2 launch's) reach each node's command line through
+launch_args.node_parameters, the function graph.launch.py uses too.
 """
 
 from __future__ import annotations
@@ -37,12 +41,9 @@ from typing import Any, TextIO
 import yaml
 
 from . import loopback
+from .launch_args import LaunchArgs, LaunchError, node_parameters, param_assignment
+from .launch_args import namespace_proof_params as namespace_proof_params  # re-exported
 from .process_exit import LAUNCHER_PID_ENV
-
-
-class LaunchError(ValueError):
-    """A graph description or node that cannot be launched (the message says which and why)."""
-
 
 # Given to every node of a namespaced graph (before the node's own remappings, like SetRemap):
 # relative targets resolve inside the namespace. At the root namespace they would change nothing.
@@ -218,28 +219,12 @@ def find_entry_point(package: str, executable: str) -> importlib.metadata.EntryP
     raise LaunchError(f'no executable {executable!r} in package {package!r} (it has: {names})')
 
 
-def namespace_proof_params(path: Path, out_dir: Path) -> Path:
-    """path, or a copy of it in out_dir whose bare node-name keys (`sim:`, which rcl matches to
-    the node /sim only) read `/**/sim:`, matching that node name in any namespace."""
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise LaunchError(f'parameters file {path}: {exc}') from None
-    if not isinstance(data, dict) or all(str(key).startswith('/') for key in data):
-        return path
-    out_dir.mkdir(parents=True, exist_ok=True)
-    out = Path(tempfile.mkstemp(prefix=f'{path.stem}_', suffix='.yaml', dir=out_dir)[1])
-    out.write_text(yaml.safe_dump(
-        {(key if str(key).startswith('/') else f'/**/{key}'): value for key, value in data.items()},
-        sort_keys=False))
-    return out
-
-
 def node_command(spec: NodeSpec, use_sim_time: bool, namespace: str = '',
-                 params_dir: Path | None = None) -> list[str]:
-    """The node's command line; namespace: the graph's (graph_namespace), '' for the root;
-    params_dir: where a namespaced node's rewritten params files go (a new temporary folder if
-    None)."""
+                 params_dir: Path | None = None, args: LaunchArgs | None = None) -> list[str]:
+    """The node's command line; use_sim_time: the graph's (a node's own value wins); namespace:
+    the graph's (graph_namespace), '' for the root; params_dir: where a namespaced node's
+    rewritten params files go (a new temporary folder if None); args: the launch arguments
+    (launch_args.node_parameters: params_file after the node's files, scene and seed to the sim)."""
     find_entry_point(spec.package, spec.executable)  # fail before starting anything
     share = share_dir(spec.package)
     namespace = graph_namespace(namespace)
@@ -247,16 +232,23 @@ def node_command(spec: NodeSpec, use_sim_time: bool, namespace: str = '',
     ns = node_namespace(namespace, spec.namespace)
     if ns:
         ros_args += ['-r', f'__ns:={ns}']
+    files = []
     for rel in spec.parameters:
         path = (share / rel) if not os.path.isabs(rel) else Path(rel)
         if not path.is_file():
             raise LaunchError(f'node {spec.name}: parameters file {path} not found')
-        if ns:
-            params_dir = params_dir or Path(tempfile.mkdtemp(prefix='vizzy_launch_'))
-            path = namespace_proof_params(path, params_dir)
-        ros_args += ['--params-file', str(path)]
-    if spec.use_sim_time if spec.use_sim_time is not None else use_sim_time:
-        ros_args += ['-p', 'use_sim_time:=true']
+        files.append(path)
+    if ns:
+        params_dir = params_dir or Path(tempfile.mkdtemp(prefix='vizzy_launch_'))
+    for item in node_parameters(spec.package, spec.executable, files,
+                                spec.use_sim_time if spec.use_sim_time is not None
+                                else use_sim_time, args or LaunchArgs(),
+                                params_dir if ns else None):
+        if isinstance(item, Path):
+            ros_args += ['--params-file', str(item)]
+        else:
+            for name, value in item.items():
+                ros_args += ['-p', param_assignment(name, value)]
     for src, dst in (GRAPH_REMAPS if namespace else ()):
         ros_args += ['-r', f'{src}:={dst}']
     for src, dst in spec.remappings.items():
@@ -322,9 +314,14 @@ class Launcher:
     """Starts and stops a Graph's processes."""
 
     def __init__(self, graph: Graph, *, env: dict[str, str] | None = None, grace_s: float = 5.0,
-                 output: TextIO | None = None, namespace: str = '') -> None:
+                 output: TextIO | None = None, namespace: str = '',
+                 args: LaunchArgs | None = None) -> None:
         self.graph = graph
-        self.namespace = graph_namespace(namespace)
+        # launch arguments (`vizzy launch key:=value`); namespace (--namespace) wins over theirs
+        self.args = args or LaunchArgs()
+        self.namespace = graph_namespace(namespace or self.args.namespace)
+        self.use_sim_time = (graph.use_sim_time if self.args.use_sim_time is None
+                             else self.args.use_sim_time)
         self._params_dir = tempfile.TemporaryDirectory(prefix='vizzy_launch_',
                                                        ignore_cleanup_errors=True)
         # nodes of the bundled runtime bind their receive sockets to 127.0.0.1 (loopback.py)
@@ -367,8 +364,8 @@ class Launcher:
 
     def start(self) -> None:
         """Start every node (and the supervisor that reports exits and respawns)."""
-        commands = [(spec, node_command(spec, self.graph.use_sim_time, self.namespace,
-                                        Path(self._params_dir.name)))
+        commands = [(spec, node_command(spec, self.use_sim_time, self.namespace,
+                                        Path(self._params_dir.name), self.args))
                     for spec in self.graph.nodes]
         for index, (spec, cmd) in enumerate(commands, 1):
             self._commands[spec.name] = (spec, cmd, index)
@@ -594,14 +591,15 @@ def names_taken(names: list[str], wait_s: float = NAME_CHECK_WAIT_S) -> list[str
 def launch(graph_file: str | Path | None = None, duration: float | None = None,
            env: dict[str, str] | None = None, namespace: str = '',
            grace_s: float = 5.0, view_port: int | None = None,
-           check_names: bool = True) -> Launcher:
+           check_names: bool = True, args: LaunchArgs | None = None) -> Launcher:
     """Run a graph (in namespace, '' for the root) until duration, Ctrl-C, SIGTERM or SIGHUP and
     stop it cleanly (SIGINT, then SIGTERM to nodes still running grace_s seconds later); returns
     the stopped Launcher (exit codes: poll(); failures: failed(); escalations: escalated).
     view_port: serve the graph to Foxglove on that port meanwhile (live_view.py); None: no view.
-    check_names: first warn (one line) if nodes on the domain already have the graph's names."""
+    check_names: first warn (one line) if nodes on the domain already have the graph's names.
+    args: launch arguments (launch_args.LaunchArgs: scene, seed, params_file, use_sim_time)."""
     graph = load_graph(graph_file or default_graph_file())
-    launcher = Launcher(graph, env=env, namespace=namespace, grace_s=grace_s)
+    launcher = Launcher(graph, env=env, namespace=namespace, grace_s=grace_s, args=args)
     view = None
     with stop_on_signals():
         try:
