@@ -9,7 +9,9 @@ advances one /clock tick at a time and only once every node has finished with th
   and precision of objects with the right label within 5 cm (and 10 cm), false objects (no true
   object within 10 cm), as curves over simulated time and over the graph's cumulative CPU;
 - visual_search: simulated seconds and saccades until the left camera first fixates the target
-  (its optical axis within TARGET_DEG of the target, the eyes still);
+  (its optical axis within TARGET_DEG of the target, the eyes still), the nearest object, out of
+  view at the start; the graph runs the nearest-object task (TASKS: config/tasks/
+  nearest_object.yaml of vizzy_runtime, every configuration);
 - pedestrians: MOTA / IDF1 of /mot/tracks against the sim's ground-truth boxes (left camera).
 
 Configurations, on the same seeds:
@@ -61,6 +63,7 @@ from vizzy_runtime.launcher import (  # noqa: E402
     default_graph_file,
     load_graph,
     parse_parameter_sets,
+    share_dir,
 )
 from vizzy_runtime.lockstep import Conductor, spun_node  # noqa: E402
 from vizzy_runtime.ros import (  # noqa: E402
@@ -93,6 +96,9 @@ OVERRIDES: dict[str, dict[str, dict[str, Any]]] = {
     'random_gaze': GAZE_OFF,
     'fixed_gaze': GAZE_OFF,
 }
+# each scene's task, a parameters file given to every node after its own (the graph's default,
+# mapping the scene, for the others): config/tasks/ of vizzy_runtime
+TASKS = {'visual_search': 'nearest_object'}
 RADII_M = (0.05, 0.10)
 FALSE_RADIUS_M = 0.10
 SAMPLE_PERIOD_S = 0.5          # curves: one point per half second of simulated time
@@ -202,11 +208,17 @@ def graph_file(out_dir: Path, scene: str, config: str, seed: int,
     path.write_text(yaml.safe_dump(params))
     graph = yaml.safe_load(default_graph_file().read_text())
     graph.update(respawn=False, respawn_standby=False)
-    graph['nodes'] = [dict(n, parameters=[*n.get('parameters', []), str(path)])
+    task = [str(task_file(scene))] if scene in TASKS else []
+    graph['nodes'] = [dict(n, parameters=[*n.get('parameters', []), *task, str(path)])
                       for n in graph['nodes']]
     out = out_dir / f'{scene}_{config}_{seed}_graph.yaml'
     out.write_text(yaml.safe_dump(graph))
     return out
+
+
+def task_file(scene: str) -> Path:
+    """The parameters file of the scene's task (TASKS)."""
+    return share_dir('vizzy_runtime') / 'config' / 'tasks' / f'{TASKS[scene]}.yaml'
 
 
 def truths(scene: str, seed: int) -> list[Any]:

@@ -22,6 +22,7 @@ setup(
         ('share/' + package_name + '/config',
          glob('config/*.yaml') + glob('config/*.xml') + glob('config/*.json')
          + glob('config/*.rviz')),
+        ('share/' + package_name + '/config/tasks', glob('config/tasks/*.yaml')),
     ],
     # The loopback-bind LD_PRELOAD shim (csrc/loopback_bind.c; see vizzy_runtime/loopback.py): built
     # like an extension so that pip and colcon compile it, never imported. Optional: without a C

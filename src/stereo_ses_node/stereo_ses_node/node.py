@@ -411,7 +411,8 @@ class StereoSesNode(Node):
         ses = self._ses
         with self._lock:
             refused = list(self._policy.refused)
-        chosen = next_fixation(ses, p, refused)
+            inhibited = self._policy.inhibited_directions(now)
+        chosen = next_fixation(ses, p, refused, inhibited)
         if chosen is None:
             self._warn_throttled('decision', 'no reachable cell above min_z_m: no fixation')
             return
@@ -419,7 +420,8 @@ class StereoSesNode(Node):
         cmd = gaze_command(point, p, self.get_clock().now().to_msg())
         publish_from_thread(self, self._gaze_pub, cmd)
         with self._lock:
-            self._policy.commanded(now, decision.cell, int(ses.n_obs[decision.cell]))
+            self._policy.commanded(now, decision.cell, int(ses.n_obs[decision.cell]),
+                                   ses.directions[decision.cell], p['inhibition_of_return_s'])
         self.gaze_commands += 1
         self.last_decision = decision
         self.get_logger().debug(f'fixation: cell {decision.cell} at {np.round(point, 3)} '

@@ -81,6 +81,11 @@ PARAMETERS: tuple[Param, ...] = (
           '[0.1, 600]'),
     Param('frames_per_fixation', 2, 'Frames fused after a saccade settles before the next '
           'decision, in [1, 100].', '[1, 100]'),
+    Param('inhibition_of_return_deg', 0.0, 'Inhibition of return: cells within this angle '
+          '[deg] of a fixation this node chose are not chosen again for inhibition_of_return_s '
+          '(0: off, the UCB of section 3.3.4 alone), in [0, 90].', '[0, 90]'),
+    Param('inhibition_of_return_s', 10.0, 'How long a fixated direction stays inhibited [s], '
+          'in [0, 600].', '[0, 600]'),
     Param('min_z_m', -0.7, 'Cells whose mean lies below this ego-frame height [m] (the floor, '
           'at about -0.9 m) are not fixation candidates (section 3.4.2), in [-10, 10].',
           '[-10, 10]'),

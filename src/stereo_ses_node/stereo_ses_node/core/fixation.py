@@ -1,7 +1,7 @@
 """The gaze-decision bookkeeping of the stereo_ses node (ROS-free; not thread-safe: the node
 holds its lock around every call): saccadic suppression, when the next fixation may be chosen,
-the cells not to choose again, and the
-next fixation among the rest."""
+the cells not to choose again (refused; inhibition of return), and the next fixation among the
+rest."""
 
 from __future__ import annotations
 
@@ -33,6 +33,9 @@ class FixationPolicy:
         self.fixated: tuple[int, int] | None = None   # (cell, its n_obs) of the last command
         self.own_saccade = False          # the saccade under way is this node's
         self.served = False               # the gaze controller served the last command
+        # inhibition of return: (unit direction in the ego frame, node-clock time it ends) of
+        # this node's fixations (next_fixation skips cells near them when its angle is > 0)
+        self.inhibited: list[tuple[np.ndarray, float]] = []
 
     def on_gaze_state(self, saccade: bool, active_source: str, stamp: float) -> None:
         """A GazeState: in_saccade, its active_source, its stamp [s]."""
@@ -62,6 +65,12 @@ class FixationPolicy:
         """The ego-sphere was rebuilt: its cells are new."""
         self.refused.clear()
         self.fixated = None
+        self.inhibited.clear()
+
+    def inhibited_directions(self, now: float) -> np.ndarray:
+        """(K, 3) unit directions still inhibited at node-clock time now (expired dropped)."""
+        self.inhibited = [(d, until) for d, until in self.inhibited if until > now]
+        return np.array([d for d, _ in self.inhibited], np.float64).reshape(-1, 3)
 
     def on_fused(self, now: float, frames_per_fixation: int, n_obs: np.ndarray) -> None:
         """A frame was fused at node-clock time now; n_obs: the cells' observation counts."""
@@ -83,9 +92,14 @@ class FixationPolicy:
                 and self.frames_since_settle >= frames_per_fixation
                 and now - self.last_command >= period_s)
 
-    def commanded(self, now: float, cell: int, n_obs: int) -> None:
-        """A command to fixate cell (n_obs observations so far) went out at now."""
+    def commanded(self, now: float, cell: int, n_obs: int, direction: np.ndarray | None = None,
+                  inhibit_s: float = 0.0) -> None:
+        """A command to fixate cell (n_obs observations so far, its ego-frame direction) went
+        out at now; the direction stays inhibited for inhibit_s."""
         self.last_command = now
+        if direction is not None and inhibit_s > 0:
+            d = np.asarray(direction, np.float64)
+            self.inhibited.append((d / max(float(np.linalg.norm(d)), 1e-12), now + inhibit_s))
         self.awaiting_saccade_until = now + SACCADE_START_TIMEOUT_S
         self.frames_since_settle = 0
         self.fixated = (cell, n_obs)
@@ -94,11 +108,17 @@ class FixationPolicy:
 
 def fixation_candidates(means: np.ndarray, directions: np.ndarray, min_z: float,
                         azimuth_limit: float, elevation_limits: tuple[float, float],
-                        refused: list[int]) -> np.ndarray:
-    """Cells that may be fixated: mean above min_z [m], reachable (angles [rad]), not refused."""
+                        refused: list[int], inhibited: np.ndarray | None = None,
+                        inhibition_rad: float = 0.0) -> np.ndarray:
+    """Cells that may be fixated: mean above min_z [m], reachable (angles [rad]), not refused,
+    and (inhibition of return) not within inhibition_rad of an inhibited (K, 3) unit
+    direction."""
     candidates = (means[:, 2] >= min_z) & reachable_cells(directions, azimuth_limit,
                                                            elevation_limits)
     candidates[refused] = False
+    if inhibited is not None and len(inhibited) and inhibition_rad > 0:
+        near = directions @ np.asarray(inhibited, np.float64).T >= math.cos(inhibition_rad)
+        candidates &= ~near.any(axis=1)
     return candidates
 
 
@@ -108,14 +128,16 @@ def clamp_distance(point: np.ndarray, dmin: float, dmax: float) -> np.ndarray:
     return point * (min(max(dist, dmin), dmax) / max(dist, 1e-9))
 
 
-def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any],
-                  refused: list[int]) -> tuple[Decision, np.ndarray] | None:
+def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int],
+                  inhibited: np.ndarray | None = None) -> tuple[Decision, np.ndarray] | None:
     """(the cell the node's parameters p choose among the reachable cells above min_z_m not in
-    refused, its fixation point moved into fixation_distance_m), or None: no cell to fixate."""
+    refused nor within inhibition_of_return_deg of an inhibited direction, its fixation point
+    moved into fixation_distance_m), or None: no cell to fixate."""
     el = np.radians(p['elevation_limits_deg'])
     candidates = fixation_candidates(ses.mean, ses.directions, p['min_z_m'],
                                      math.radians(p['azimuth_limit_deg']), (el[0], el[1]),
-                                     refused)
+                                     refused, inhibited,
+                                     math.radians(p.get('inhibition_of_return_deg', 0.0)))
     if not np.any(candidates):
         return None
     decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),

@@ -1,0 +1,71 @@
+"""The stereo_ses gaze decision: candidates, inhibition of return, the next fixation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from stereo_ses_node.core.fixation import FixationPolicy, fixation_candidates, next_fixation
+from stereo_ses_node.core.ses import SensoryEgoSphere
+from stereo_ses_node.params import PARAMETERS
+
+DEFAULTS = {p.name: p.default for p in PARAMETERS}
+
+
+def observe(ses: SensoryEgoSphere, direction: np.ndarray, distance: float,
+            radius_deg: float = 3.0) -> np.ndarray:
+    """Cells within radius_deg of direction: seen at distance with a 1 cm sigma (their mask)."""
+    d = direction / np.linalg.norm(direction)
+    near = ses.directions @ d >= math.cos(math.radians(radius_deg))
+    ses.mean[near] = distance * ses.directions[near]
+    ses.cov[near] = np.eye(3) * 1e-4
+    ses.n_obs[near] = 5
+    return near
+
+
+def test_candidates_skip_cells_near_an_inhibited_direction_only_while_it_lasts() -> None:
+    ses = SensoryEgoSphere(4000, seed=1)
+    ahead = np.array([1.0, 0.0, 0.0])
+    policy = FixationPolicy('stereo_ses')
+    policy.commanded(0.0, 0, 0, 2.0 * ahead, inhibit_s=5.0)
+    inhibited = policy.inhibited_directions(1.0)
+    assert inhibited.shape == (1, 3) and np.allclose(inhibited[0], ahead)
+    args = (ses.mean, ses.directions, -10.0, math.radians(75.0), (-1.0, 1.0), [])
+    free = fixation_candidates(*args)
+    held = fixation_candidates(*args, inhibited, math.radians(6.0))
+    angle = np.degrees(np.arccos(np.clip(ses.directions @ ahead, -1, 1)))
+    assert free[angle < 6.0].all()                      # reachable, not refused
+    assert not held[angle < 6.0].any()                  # inhibited around the fixation
+    assert np.array_equal(held[angle > 6.0], free[angle > 6.0])
+    # an angle of 0 switches it off; an expired direction is forgotten
+    assert np.array_equal(fixation_candidates(*args, inhibited, 0.0), free)
+    assert policy.inhibited_directions(5.0).shape == (0, 3)
+    policy.commanded(6.0, 1, 0, ahead, inhibit_s=0.0)   # 0 s: nothing inhibited
+    assert policy.inhibited_directions(6.0).shape == (0, 3)
+
+
+def test_nearest_object_search_moves_on_after_fixating_a_near_object() -> None:
+    """The visual-search task (UCB alpha 1, a near prior): the nearest observed object beats
+    unobserved space; with inhibition of return, once fixated, the next choice is elsewhere,
+    not that object again (without it the head would stare at the first near object)."""
+    ses = SensoryEgoSphere(6000, seed=2, init_distance=1.0, init_sigma=0.001)
+    near_can = np.array([1.0, 0.3, -0.1])
+    nearer_can = np.array([0.5, 1.0, -0.1])        # 63 deg left: out of view so far
+    can_cells = observe(ses, near_can, 0.8)
+    p = dict(DEFAULTS, ucb_alpha=1.0, inhibition_of_return_deg=6.0, min_z_m=-10.0)
+    policy = FixationPolicy('stereo_ses')
+
+    chosen = next_fixation(ses, p, [], policy.inhibited_directions(0.0))
+    assert chosen is not None and can_cells[chosen[0].cell]      # the 0.8 m can first
+    assert math.isclose(float(np.linalg.norm(chosen[1])), 0.8, rel_tol=1e-6)
+    policy.commanded(0.0, chosen[0].cell, 5, ses.directions[chosen[0].cell], inhibit_s=30.0)
+
+    again = next_fixation(ses, dict(p, inhibition_of_return_deg=0.0), [])
+    assert again is not None and can_cells[again[0].cell]        # without IoR: the same can
+    moved = next_fixation(ses, p, [], policy.inhibited_directions(1.0))
+    assert moved is not None and not ses.n_obs[moved[0].cell]    # with IoR: explore
+    # the nearer can, once seen, is the next fixation (the search's goal)
+    nearer_cells = observe(ses, nearer_can, 0.55)
+    found = next_fixation(ses, p, [], policy.inhibited_directions(2.0))
+    assert found is not None and nearer_cells[found[0].cell]
