@@ -136,7 +136,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         items = load_folder(args.folder, clf.labels, args.csv)
     except FolderError as exc:
-        return fail(PROG, str(exc))
+        hint = ''
+        if args.model == DEFAULT_MODEL and 'none of the model' in str(exc):
+            # the default is the simulator's network: ImageNet photos need an ImageNet model
+            hint = ('; the default model is the simulator\'s: for ImageNet photos run '
+                    '`python -m foveation_node.export_imagenet_classifier --out models/ lite0` '
+                    'and give --model models/efficientnet_lite0.pt')
+        return fail(PROG, str(exc) + hint)
     if args.limit:
         items = items[:args.limit]
     fovs = Foveators(args.levels)

@@ -227,3 +227,14 @@ def test_cli_bad_input_is_one_line_and_status_2(tmp_path, stub_model, capsys, ar
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('recognize_folder: ')
     assert re.search(match, err[0]), err[0]
+
+
+def test_cli_imagenet_photos_with_the_default_model_say_how_to_get_an_imagenet_one(
+        tmp_path, capsys) -> None:
+    """No --model: the simulator's network, which knows no ImageNet class; the one-line error
+    names the tool that makes an ImageNet model (issue 31)."""
+    _write(tmp_path / 'n01484850_great_white_shark.png', _patch_image('red'))
+    assert recognize_folder.main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'none of the model' in err[0]
+    assert 'export_imagenet_classifier' in err[0] and '--model' in err[0]
