@@ -1073,6 +1073,14 @@ def commands_section(src: Source) -> list[str]:
         if p.get('cpu_s_per_run_median') is not None:
             cpu += f" ({p['cpu_s_per_run_median']:.1f} s per run, median)"
         lines.append(f'| `{name}` | `{cmd}` | {cpu} |')
+    # ../shared/data is development data a clone does not have (issue 29 item 8): name the
+    # in-repo sequence the same command runs on
+    lines += ['', 'MOT17-mini (`../shared/data/mot17-mini`: the first 4-8 frames of seven MOT17 '
+              'training sequences, CC BY-NC-SA 3.0) is development data outside the repository. '
+              'On a fresh clone `experiments/mot_budget.py --motchallenge '
+              'samples/sim-pedestrians-s0 --trials 2 --area centres pixels --iterations 200` '
+              "runs the same grid on a sequence rendered by the project's simulator "
+              '(samples/README.md; 52 s CPU).']
     return lines
 
 
