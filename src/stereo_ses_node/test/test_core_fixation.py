@@ -69,3 +69,28 @@ def test_nearest_object_search_moves_on_after_fixating_a_near_object() -> None:
     nearer_cells = observe(ses, nearer_can, 0.55)
     found = next_fixation(ses, p, [], policy.inhibited_directions(2.0))
     assert found is not None and nearer_cells[found[0].cell]
+
+
+def test_an_observed_cell_is_fixated_at_the_middle_of_its_surface() -> None:
+    """fixation_cluster_m: the chosen cell on the rim of a near object is fixated at the mean of
+    the observed cells about it (the object's middle), not at its own mean; 0 keeps the cell's
+    own mean; unobserved space is fixated at the cell's prior mean either way."""
+    ses = SensoryEgoSphere(6000, seed=3, init_distance=1.0, init_sigma=0.001)
+    centre = np.array([0.5, 0.0, 0.0])
+    cells = observe(ses, centre, 0.5, radius_deg=5.0)
+    # the nearest point: a cell on the rim, pulled 2 cm nearer than the rest of the surface
+    rim = np.flatnonzero(cells)[np.argmin(ses.directions[cells] @ centre)]
+    ses.mean[rim] *= 0.96
+    p = dict(DEFAULTS, ucb_alpha=1.0, min_z_m=-10.0)
+    own = next_fixation(ses, p, [])
+    assert own is not None and own[0].cell == rim and np.allclose(own[1], ses.mean[rim])
+    middle = next_fixation(ses, dict(p, fixation_cluster_m=0.06), [])
+    assert middle is not None and middle[0].cell == rim
+    off_own = math.degrees(math.acos(own[1] @ centre / np.linalg.norm(own[1]) / 0.5))
+    off_middle = math.degrees(math.acos(middle[1] @ centre / np.linalg.norm(middle[1]) / 0.5))
+    assert off_own > 4.0 and off_middle < 1.0, (off_own, off_middle)
+    ses.n_obs[:] = 0                                      # nothing observed: the prior mean
+    ses.mean[:] = ses.directions
+    unobserved = next_fixation(ses, dict(p, fixation_cluster_m=0.06), [])
+    assert unobserved is not None
+    assert np.allclose(unobserved[1], ses.directions[unobserved[0].cell])

@@ -142,5 +142,24 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
         return None
     decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
                                candidates=candidates)
+    point = decision.fixation
+    radius = float(p.get('fixation_cluster_m', 0.0))
+    if radius > 0 and ses.n_obs[decision.cell] > 0:
+        point = cluster_centre(ses.mean, ses.n_obs > 0, point, radius)
     dmin, dmax = p['fixation_distance_m']
-    return decision, clamp_distance(decision.fixation, dmin, dmax)
+    return decision, clamp_distance(point, dmin, dmax)
+
+
+def cluster_centre(means: np.ndarray, observed: np.ndarray, point: np.ndarray,
+                   radius: float, iterations: int = 3) -> np.ndarray:
+    """The middle of the surface a chosen cell lies on, not its edge: a few mean-shift steps
+    (flat kernel of radius [m]) over the observed cell means from point (a cell's mean is one
+    surface point; a can 0.5 m away spans 7 x 14 deg, so a cell on its rim is 6-7 deg off its
+    middle)."""
+    seen = means[observed]
+    for _ in range(iterations):
+        near = np.linalg.norm(seen - point, axis=1) <= radius
+        if not np.any(near):
+            break
+        point = seen[near].mean(axis=0)
+    return point
