@@ -8,22 +8,73 @@ import os
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 # check(name, value): why value is not acceptable for parameter name, or None if it is.
 Check = Callable[[str, Any], 'str | None']
+
+
+# --- deadlines: every deadline a test waits on state with goes through scaled() ---
+
+TIME_SCALE_ENV = 'VIZZY_TEST_TIME_SCALE'
+
+
+def time_scale() -> float:
+    """VIZZY_TEST_TIME_SCALE (default 1): the factor on every test deadline, for a slow or loaded
+    machine (e.g. 3 under valgrind or at load average 8 on 2 cores). Raises ValueError, in one
+    line, for a value that is not a number > 0."""
+    raw = os.environ.get(TIME_SCALE_ENV, '').strip()
+    if not raw:
+        return 1.0
+    try:
+        scale = float(raw)
+    except ValueError:
+        raise ValueError(f'{TIME_SCALE_ENV}={raw!r} is not a number; use a factor > 0 '
+                         'such as 2') from None
+    if not (scale > 0.0 and math.isfinite(scale)):
+        raise ValueError(f'{TIME_SCALE_ENV}={raw!r} must be a finite number > 0 (1: as written)')
+    return scale
+
+
+def scaled(seconds: float) -> float:
+    """A test's deadline of seconds (on an unloaded machine), times VIZZY_TEST_TIME_SCALE.
+    Only for deadlines of waiting on state; durations that are part of a test's scenario
+    (a period, how long a node runs) stay as written."""
+    return seconds * time_scale()
+
+
+# --- tests that need offscreen OpenGL (MuJoCo on EGL or OSMesa) ---
+
+REQUIRE_RENDER_ENV = 'VIZZY_REQUIRE_RENDER'
+
+
+def no_renderer(reason: str) -> NoReturn:
+    """The one place a test that found no offscreen renderer ends: skipped, or failed with reason
+    where VIZZY_REQUIRE_RENDER=1 (CI installs Mesa, so there a render that does not work is a
+    fault, not a machine without OpenGL)."""
+    import pytest
+
+    require = os.environ.get(REQUIRE_RENDER_ENV, '').strip()
+    if require not in ('', '0', '1'):
+        pytest.fail(f'{REQUIRE_RENDER_ENV}={require!r}: use 1 (a missing renderer fails the '
+                    'test) or 0 (it skips the test)', pytrace=False)
+    if require == '1':
+        pytest.fail(f'no offscreen rendering, and {REQUIRE_RENDER_ENV}=1: {reason}', pytrace=False)
+    pytest.skip(f'no offscreen rendering: {reason}')
 
 
 # How long a test's launcher waits for its nodes to stop after SIGINT before SIGTERM (Launcher
 # grace_s). The launcher's own default (5 s) is a deployment figure, and stop times are measured in
 # bench/lifecycle.py; a test asserts only that every node ends cleanly, on a loaded machine too
 # (a node of the two-head graph needed more than 5 s at load average 7 on 2 cores).
-STOP_GRACE_S = 30.0
+STOP_GRACE_S = scaled(30.0)
 
 
-def wait_until(predicate: Callable[[], bool], timeout: float = 10.0, spin: Any = None) -> bool:
-    """Poll predicate (spinning an executor if given) until it holds; False on timeout."""
-    deadline = time.monotonic() + timeout
+def wait_until(predicate: Callable[[], bool], timeout: float | None = None,
+               spin: Any = None) -> bool:
+    """Poll predicate (spinning an executor if given) until it holds; False on timeout (s, as
+    given: a test passes scaled(s); by default scaled(10))."""
+    deadline = time.monotonic() + (scaled(10.0) if timeout is None else timeout)
     while time.monotonic() < deadline:
         if predicate():
             return True
@@ -227,9 +278,11 @@ def node_under_test(node_factory: Callable[[], Any]) -> Iterator[Any]:
 
 
 def publish_until(publish: Callable[[], Any], done: Callable[[], bool], spin: Any,
-                  timeout: float = 10.0, period: float = 0.2) -> bool:
+                  timeout: float | None = None, period: float = 0.2) -> bool:
     """Call publish() every period s while spinning until done() (best-effort QoS, such as sensor
-    data, may drop a sample: send it again); False if done() never held within timeout."""
+    data, may drop a sample: send it again); False if done() never held within timeout (s, as
+    given; by default scaled(10))."""
+    timeout = scaled(10.0) if timeout is None else timeout
     for _ in range(max(1, int(timeout / period))):
         publish()
         if wait_until(done, period, spin=spin):
@@ -238,9 +291,11 @@ def publish_until(publish: Callable[[], Any], done: Callable[[], bool], spin: An
 
 
 def refused_once(node: Any, spin: Any, publish: Callable[[], Any], key: tuple[str, str],
-                 timeout: float = 20.0, period: float = 2.0) -> bool:
-    """publish() until node.input_health's count of key (topic, reason) rose by one; sent again
-    only after period s without it (best-effort QoS may drop a sample)."""
+                 timeout: float | None = None, period: float = 2.0) -> bool:
+    """publish() until node.input_health's count of key (topic, reason) rose by one, within
+    timeout (s, as given; by default scaled(20)); sent again only after period s without it
+    (best-effort QoS may drop a sample)."""
+    timeout = scaled(20.0) if timeout is None else timeout
     before = node.input_health.refused().get(key, 0)
     return publish_until(publish, lambda: node.input_health.refused().get(key, 0) > before,
                          spin, timeout, period=period)
@@ -258,10 +313,13 @@ def reported_status(reports: Sequence[Any], node_name: str) -> dict[str, str]:
 
 @contextlib.contextmanager
 def spinning(context: Any, nodes: Sequence[Any], ready: Callable[[], bool],
-             timeout: float = 10.0) -> Iterator[Any]:
+             timeout: float | None = None) -> Iterator[Any]:
     """A SingleThreadedExecutor over nodes in context, once ready() holds (e.g. every publisher
-    matched); yields the executor and afterwards removes and destroys the nodes (last first)."""
+    matched) within timeout (s, as given; by default scaled(10)); yields the executor and
+    afterwards removes and destroys the nodes (last first)."""
     from vizzy_runtime.ros import SingleThreadedExecutor
+
+    timeout = scaled(10.0) if timeout is None else timeout
 
     executor = SingleThreadedExecutor(context=context)
     for node in nodes:
