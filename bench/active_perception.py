@@ -128,6 +128,8 @@ class Run:
     found_target_s: float | None = None
     saccades_to_target: int | None = None
     saccades_by_source: dict[str, int] = field(default_factory=dict)
+    # per saccade: [t, source, x, y, z] of /gaze/state's fixation point (its frame_id's)
+    fixations: list[list[Any]] = field(default_factory=list)
     min_target_deg: float | None = None      # visual search: the axis's closest approach
 
 
@@ -163,6 +165,9 @@ class BenchNode(Node):
                 run.saccades += 1
                 source = str(msg.active_source) or '?'
                 run.saccades_by_source[source] = run.saccades_by_source.get(source, 0) + 1
+                p = msg.fixation_point
+                run.fixations.append([round(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, 2), source,
+                                      round(p.x, 3), round(p.y, 3), round(p.z, 3)])
             run.in_saccade = bool(msg.in_saccade)
 
     def _on_joints(self, msg: Any) -> None:
@@ -368,6 +373,7 @@ def one_run(node: BenchNode, scene: str, config: str, seed: int, seconds: float,
         'cpu_s_by_node': used, 'cpu_robot_s': round(sum(v for n, v in used.items()
                                                         if n != 'sim'), 3),
         'saccades': run.saccades, 'saccades_by_source': run.saccades_by_source,
+        'fixations': run.fixations,
         'eye_bytes': run.eye_bytes, 'eye_images': run.eye_images,
         'samples': run.samples,
     }
