@@ -166,8 +166,9 @@ class BenchNode(Node):
                 source = str(msg.active_source) or '?'
                 run.saccades_by_source[source] = run.saccades_by_source.get(source, 0) + 1
                 p = msg.fixation_point
-                run.fixations.append([round(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, 2), source,
-                                      round(p.x, 3), round(p.y, 3), round(p.z, 3)])
+                t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                run.fixations.append([round(t, 2), source, round(p.x, 3), round(p.y, 3),
+                                      round(p.z, 3)])
             run.in_saccade = bool(msg.in_saccade)
 
     def _on_joints(self, msg: Any) -> None:
