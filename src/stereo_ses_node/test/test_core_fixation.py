@@ -94,3 +94,20 @@ def test_an_observed_cell_is_fixated_at_the_middle_of_its_surface() -> None:
     unobserved = next_fixation(ses, dict(p, fixation_cluster_m=0.06), [])
     assert unobserved is not None
     assert np.allclose(unobserved[1], ses.directions[unobserved[0].cell])
+
+
+def test_a_cell_seen_fewer_than_min_observations_times_is_scored_by_its_prior() -> None:
+    """A lone observation (a stereo mismatch 0.4 m in front of the eyes) is the nearest thing
+    there is for min_observations 1; with 3 it counts as unobserved and a surface seen 5 times
+    at 0.8 m is chosen instead."""
+    ses = SensoryEgoSphere(6000, seed=4, init_distance=1.0, init_sigma=10.0)
+    ahead = ses.directions[np.argmax(ses.directions @ np.array([0.98, 0.0, 0.2]))]
+    lone = observe(ses, ahead, 0.4, radius_deg=1.0)       # that one cell
+    assert lone.sum() == 1
+    ses.n_obs[lone] = 1
+    surface = observe(ses, np.array([1.0, -0.5, 0.0]), 0.8)
+    p = dict(DEFAULTS, ucb_alpha=0.01, prior_distance_m=1.0, prior_sigma_m=10.0, min_z_m=-10.0)
+    greedy = next_fixation(ses, p, [])
+    assert greedy is not None and lone[greedy[0].cell]
+    robust = next_fixation(ses, dict(p, min_observations=3), [])
+    assert robust is not None and surface[robust[0].cell]

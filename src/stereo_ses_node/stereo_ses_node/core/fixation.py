@@ -140,12 +140,22 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
                                      math.radians(p.get('inhibition_of_return_deg', 0.0)))
     if not np.any(candidates):
         return None
-    decision = choose_fixation(ses.mean, ses.cov, p['acquisition'], float(p['ucb_alpha']),
+    means, covs = ses.mean, ses.cov
+    least = int(p.get('min_observations', 1))
+    if least > 1:
+        # a cell seen fewer times is scored as never seen (a lone stereo mismatch 0.4 m in
+        # front of the eyes would otherwise be the nearest thing there is)
+        few = (ses.n_obs > 0) & (ses.n_obs < least)
+        if np.any(few):
+            means, covs = means.copy(), covs.copy()
+            means[few] = float(p['prior_distance_m']) * ses.directions[few]
+            covs[few] = np.eye(3) * float(p['prior_sigma_m']) ** 2
+    decision = choose_fixation(means, covs, p['acquisition'], float(p['ucb_alpha']),
                                candidates=candidates)
     point = decision.fixation
     radius = float(p.get('fixation_cluster_m', 0.0))
-    if radius > 0 and ses.n_obs[decision.cell] > 0:
-        point = cluster_centre(ses.mean, ses.n_obs > 0, point, radius)
+    if radius > 0 and ses.n_obs[decision.cell] >= least:
+        point = cluster_centre(ses.mean, ses.n_obs >= max(least, 1), point, radius)
     dmin, dmax = p['fixation_distance_m']
     return decision, clamp_distance(point, dmin, dmax)
 
