@@ -86,8 +86,8 @@ PARAMETERS: tuple[Param, ...] = (
           '(0: off, the UCB of section 3.3.4 alone), in [0, 90].', '[0, 90]'),
     Param('inhibition_of_return_s', 10.0, 'How long a fixated direction stays inhibited [s], '
           'in [0, 600].', '[0, 600]'),
-    Param('min_observations', 1, 'A cell observed fewer times than this is scored as a '
-          'never-observed one (its prior) when choosing the next fixation, in [1, 1000].',
+    Param('min_observations', 1, 'A cell observed in fewer fused frames than this is scored as '
+          'a never-observed one (its prior) when choosing the next fixation, in [1, 1000].',
           '[1, 1000]'),
     Param('fixation_cluster_m', 0.0, 'An observed cell is fixated at the mean of the observed '
           'cell means within this distance [m] of its own (the middle of the object it lies '

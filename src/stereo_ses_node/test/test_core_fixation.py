@@ -21,6 +21,7 @@ def observe(ses: SensoryEgoSphere, direction: np.ndarray, distance: float,
     ses.mean[near] = distance * ses.directions[near]
     ses.cov[near] = np.eye(3) * 1e-4
     ses.n_obs[near] = 5
+    ses.n_frames[near] = 5
     return near
 
 
@@ -90,6 +91,7 @@ def test_an_observed_cell_is_fixated_at_the_middle_of_its_surface() -> None:
     off_middle = math.degrees(math.acos(middle[1] @ centre / np.linalg.norm(middle[1]) / 0.5))
     assert off_own > 4.0 and off_middle < 1.0, (off_own, off_middle)
     ses.n_obs[:] = 0                                      # nothing observed: the prior mean
+    ses.n_frames[:] = 0
     ses.mean[:] = ses.directions
     unobserved = next_fixation(ses, dict(p, fixation_cluster_m=0.06), [])
     assert unobserved is not None
@@ -97,14 +99,15 @@ def test_an_observed_cell_is_fixated_at_the_middle_of_its_surface() -> None:
 
 
 def test_a_cell_seen_fewer_than_min_observations_times_is_scored_by_its_prior() -> None:
-    """A lone observation (a stereo mismatch 0.4 m in front of the eyes) is the nearest thing
-    there is for min_observations 1; with 3 it counts as unobserved and a surface seen 5 times
-    at 0.8 m is chosen instead."""
+    """A cell seen in one frame (stereo mismatches 0.4 m in front of the eyes, many points) is
+    the nearest thing there is for min_observations 1; with 3 it counts as unobserved and a
+    surface seen in 5 frames at 0.8 m is chosen instead."""
     ses = SensoryEgoSphere(6000, seed=4, init_distance=1.0, init_sigma=10.0)
     ahead = ses.directions[np.argmax(ses.directions @ np.array([0.98, 0.0, 0.2]))]
     lone = observe(ses, ahead, 0.4, radius_deg=1.0)       # that one cell
     assert lone.sum() == 1
-    ses.n_obs[lone] = 1
+    ses.n_obs[lone] = 40          # many points, one frame
+    ses.n_frames[lone] = 1
     surface = observe(ses, np.array([1.0, -0.5, 0.0]), 0.8)
     p = dict(DEFAULTS, ucb_alpha=0.01, prior_distance_m=1.0, prior_sigma_m=10.0, min_z_m=-10.0)
     greedy = next_fixation(ses, p, [])

@@ -127,3 +127,14 @@ def test_bad_observations_skipped_and_sphere_consistent():
     assert np.all(np.isfinite(ses.mean)) and np.all(np.isfinite(ses.cov))
     assert np.all(np.linalg.eigvalsh(ses.cov)[:, 0] > 0)
     assert ses.n_obs.sum() == 1
+
+
+def test_n_frames_counts_the_fuse_calls_that_observed_a_cell() -> None:
+    ses = SensoryEgoSphere(500, seed=0)
+    points = np.array([[2.0, 0.0, 0.0]] * 7)             # seven points, one cell
+    covs = np.broadcast_to(np.eye(3) * 1e-4, (7, 3, 3))
+    ses.fuse(points, covs)
+    ses.fuse(points[:2], covs[:2])
+    cell = int(np.argmax(ses.n_obs))
+    assert ses.n_obs[cell] == 9 and ses.n_frames[cell] == 2
+    assert ses.n_frames.sum() == 2

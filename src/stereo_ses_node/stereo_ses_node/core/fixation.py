@@ -143,9 +143,10 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
     means, covs = ses.mean, ses.cov
     least = int(p.get('min_observations', 1))
     if least > 1:
-        # a cell seen fewer times is scored as never seen (a lone stereo mismatch 0.4 m in
-        # front of the eyes would otherwise be the nearest thing there is)
-        few = (ses.n_obs > 0) & (ses.n_obs < least)
+        # a cell seen in fewer frames is scored as never seen (stereo mismatches 0.4-0.9 m in
+        # front of the eyes, from one fixation's frames, would otherwise be the nearest thing
+        # there is; a surface stays in the 85 deg field of view over several fixations)
+        few = (ses.n_frames > 0) & (ses.n_frames < least)
         if np.any(few):
             means, covs = means.copy(), covs.copy()
             means[few] = float(p['prior_distance_m']) * ses.directions[few]
@@ -154,8 +155,8 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
                                candidates=candidates)
     point = decision.fixation
     radius = float(p.get('fixation_cluster_m', 0.0))
-    if radius > 0 and ses.n_obs[decision.cell] >= least:
-        point = cluster_centre(ses.mean, ses.n_obs >= max(least, 1), point, radius)
+    if radius > 0 and ses.n_frames[decision.cell] >= max(least, 1):
+        point = cluster_centre(ses.mean, ses.n_frames >= max(least, 1), point, radius)
     dmin, dmax = p['fixation_distance_m']
     return decision, clamp_distance(point, dmin, dmax)
 

@@ -270,6 +270,7 @@ class SensoryEgoSphere:
         self.mean = init_distance * self.directions
         self.cov = np.broadcast_to(np.eye(3) * init_sigma ** 2, (n, 3, 3)).copy()
         self.n_obs = np.zeros(n, np.int64)
+        self.n_frames = np.zeros(n, np.int64)      # fuse calls (frames) that observed the cell
 
     @property
     def n_cells(self) -> int:
@@ -337,6 +338,7 @@ class SensoryEgoSphere:
         self.info += d_info                                            # Eq. 3.34 (inverse)
         self.info_vec += d_vec
         self.n_obs += counts
+        self.n_frames[touched] += 1
         self.cov[touched] = det_inv3(self.info[touched])[1]            # Eq. 3.34
         self.mean[touched] = np.einsum('nab,nb->na', self.cov[touched],
                                        self.info_vec[touched])        # Eq. 3.35
