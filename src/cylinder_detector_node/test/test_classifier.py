@@ -23,6 +23,7 @@ from cylinder_detector_node.core.classifier import (
 from cylinder_detector_node.core.fitting import FitParams
 from cylinder_detector_node.core.pipeline import detect_cylinders, image_problem
 from cylinder_detector_node.training.train_classifier import average_precision
+from vizzy_runtime.testing import no_renderer
 
 TEST_SEEDS = (20001, 20002, 20003, 20004)
 
@@ -35,7 +36,7 @@ def frames():
         out = [r.frame(s, random_joints(np.random.default_rng([3, s]))) for s in TEST_SEEDS]
         r.close()
     except Exception as exc:   # RendererUnavailable, missing GL libraries
-        pytest.skip(f'no offscreen rendering: {exc}')
+        no_renderer(str(exc))
     return out
 
 
@@ -111,6 +112,7 @@ def test_classifier_beats_fit_quality_on_held_out_patches(frames, classifier) ->
     assert (quality[labels == 0] >= 0.5).mean() > (probs[labels == 0] >= 0.5).mean()
 
 
+@pytest.mark.slow
 def test_pipeline_with_classifier_skips_non_cylinders(frames, classifier) -> None:
     fit = FitParams(gmm=TABLE_4_1['mild'])
     from cylinder_detector_node.training.patch_data import SEGMENT, label_cluster

@@ -27,7 +27,14 @@ from vizzy_runtime.ros import (
     qos_profile_sensor_data,
     qos_profile_system_default,
 )
-from vizzy_runtime.testing import publish_until, reported_status, spinning, wait_until
+from vizzy_runtime.testing import (
+    no_renderer,
+    publish_until,
+    reported_status,
+    scaled,
+    spinning,
+    wait_until,
+)
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -38,7 +45,7 @@ PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 Image = message('sensor_msgs/msg/Image')
 DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 
-TIMEOUT = 60.0
+TIMEOUT = scaled(60.0)
 FRAME = 'rgbd_camera_optical_frame'
 XYZ = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
 
@@ -217,7 +224,7 @@ def rendered():
         frame = r.frame(0)
         r.close()
     except Exception as exc:   # no offscreen OpenGL
-        pytest.skip(f'no offscreen rendering: {exc}')
+        no_renderer(str(exc))
     return frame
 
 

@@ -15,6 +15,8 @@ import pytest
 import torch
 from torch import nn
 
+from vizzy_runtime.testing import no_renderer
+
 STUB_LABELS = ('red', 'green', 'blue')
 
 
@@ -72,4 +74,4 @@ def wall_view():
         with TabletopViews() as tv:
             return tv.view(WALL_SEED, WALL_JOINTS), WALL_FIXATION
     except render.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))

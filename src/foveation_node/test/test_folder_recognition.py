@@ -174,6 +174,7 @@ def _stub_folder(tmp_path: Path) -> Path:
     return folder
 
 
+@pytest.mark.slow
 def test_cli_reports_errors_and_writes_strict_json(tmp_path, stub_model, capsys) -> None:
     model, labels = stub_model
     folder = _stub_folder(tmp_path)

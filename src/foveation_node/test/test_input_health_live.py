@@ -24,7 +24,14 @@ from vizzy_runtime.ros import (
     qos_profile_sensor_data,
     qos_profile_system_default,
 )
-from vizzy_runtime.testing import publish_until, refused_once, reported_status, spinning, wait_until
+from vizzy_runtime.testing import (
+    publish_until,
+    refused_once,
+    reported_status,
+    scaled,
+    spinning,
+    wait_until,
+)
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -33,7 +40,7 @@ CameraInfo = message('sensor_msgs/msg/CameraInfo')
 DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 DiagnosticStatus = message('diagnostic_msgs/msg/DiagnosticStatus')
 
-TIMEOUT = 20.0
+TIMEOUT = scaled(20.0)
 WIDTH, HEIGHT = 161, 121
 
 

@@ -23,7 +23,7 @@ from vizzy_runtime.ros import (
     qos_profile_sensor_data,
     qos_profile_system_default,
 )
-from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.testing import publish_until, scaled, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -32,7 +32,7 @@ DiagnosticStatus = message('diagnostic_msgs/msg/DiagnosticStatus')
 Image = message('sensor_msgs/msg/Image')
 CompressedImage = message('sensor_msgs/msg/CompressedImage')
 
-TIMEOUT = 20.0
+TIMEOUT = scaled(20.0)
 WIDTH, HEIGHT = 161, 121          # odd: the centre (80, 60) is a whole pixel
 F0 = 8.0
 

@@ -25,7 +25,7 @@ from vizzy_runtime.ros import (
     qos_profile_sensor_data,
     qos_profile_system_default,
 )
-from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.testing import publish_until, scaled, spinning, wait_until
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -36,7 +36,7 @@ Detection2DArray = message('vision_msgs/msg/Detection2DArray')
 Image = message('sensor_msgs/msg/Image')
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 
-TIMEOUT = 30.0
+TIMEOUT = scaled(30.0)
 WIDTH, HEIGHT = 320, 240
 FX = 180.0
 PATCH = (260, 60)                 # a red patch up and to the right of the centre

@@ -13,6 +13,7 @@ import pytest
 from foveation_node.core.foveation import Foveator
 from foveation_node.core.recognition import BACKGROUND_LABEL, Classifier, localise, two_pass
 from foveation_node.node import resolve_path
+from vizzy_runtime.testing import no_renderer
 
 pytest.importorskip('mujoco')
 render_mod = pytest.importorskip('vizzy_sim_bridge.core.render')
@@ -29,7 +30,7 @@ def views():
         with ObjectViews(640, 480, seed=7) as ov:
             return ov.dataset(PER_CLASS * len(CLASSES), seed=9001)
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
 
 
 @pytest.fixture(scope='module')
@@ -57,6 +58,7 @@ def test_beats_chance_on_fresh_renders(classifier, views) -> None:
     assert accuracy > 4 * chance
 
 
+@pytest.mark.slow
 def test_saliency_boxes_land_on_the_object(classifier, views) -> None:
     hits = 0
     for view in views:

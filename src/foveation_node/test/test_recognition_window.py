@@ -124,6 +124,7 @@ def test_a_bad_window_is_refused_in_one_line(stub_model) -> None:
         Classifier(model, labels)
 
 
+@pytest.mark.slow
 def test_the_shared_training_epoch_learns_a_separable_toy_set() -> None:
     """train_epoch (both trainers' loop): red vs green 8x8 images, a linear model, two epochs."""
     import torch

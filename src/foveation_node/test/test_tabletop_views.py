@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from foveation_node.training.tabletop_views import TableObject, object_at
+from vizzy_runtime.testing import no_renderer
 
 pytest.importorskip('mujoco')
 render_mod = pytest.importorskip('vizzy_sim_bridge.core.render')
@@ -40,7 +41,7 @@ def views():
         with TabletopViews() as tv:
             return [tv.view(s, DEFAULT_JOINTS) for s in SEEDS]
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
 
 
 def test_ground_truth_boxes_hold_the_objects(views) -> None:
@@ -58,6 +59,7 @@ def test_ground_truth_boxes_hold_the_objects(views) -> None:
         assert inside.std() > 10
 
 
+@pytest.mark.slow
 def test_two_pass_names_the_object_under_its_box(views) -> None:
     from foveation_node.core.foveation import Foveator
     from foveation_node.core.recognition import Classifier, two_pass

@@ -13,6 +13,7 @@ import pytest
 from foveation_node.core.foveation import Foveator
 from foveation_node.core.recognition import BACKGROUND_LABEL, Classifier, two_pass
 from foveation_node.node import DEFAULT_LABELS, DEFAULT_MODEL, resolve_path
+from vizzy_runtime.testing import no_renderer
 
 pytest.importorskip('mujoco')
 pytest.importorskip('vizzy_gaze.core.gaze')
@@ -66,10 +67,11 @@ def fixated_views():
                 assert tv.object_under(*PRINCIPAL) == name           # in sight, at the centre
                 out.append((name, label, view.rgb))
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
     return out
 
 
+@pytest.mark.slow
 def test_names_the_fixated_object(classifier, fixated_views) -> None:
     fov = Foveator(640, 480, 5, 100.0)
     for name, label, rgb in fixated_views:

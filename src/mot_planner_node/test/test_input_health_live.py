@@ -21,7 +21,14 @@ from mot_planner_node.core.observation import DetectorGeometry
 from vizzy_runtime.convert import numpy_to_image
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
 from vizzy_runtime.ros import Context, Node, message, qos_profile_system_default
-from vizzy_runtime.testing import publish_until, refused_once, reported_status, spinning, wait_until
+from vizzy_runtime.testing import (
+    publish_until,
+    refused_once,
+    reported_status,
+    scaled,
+    spinning,
+    wait_until,
+)
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
@@ -30,7 +37,7 @@ CameraInfo = message('sensor_msgs/msg/CameraInfo')
 TrackArray = message('active_vision_msgs/msg/TrackArray')
 DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 
-TIMEOUT = 20.0
+TIMEOUT = scaled(20.0)
 WIDTH, HEIGHT = 160, 120
 
 

@@ -27,7 +27,7 @@ from vizzy_runtime.ros import (
     qos_profile_sensor_data,
     qos_profile_system_default,
 )
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import scaled, spinning, wait_until
 from vizzy_runtime.tf import TF_TOPIC
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
@@ -39,7 +39,7 @@ AttentionRegions = message('active_vision_msgs/msg/AttentionRegions')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 
-TIMEOUT = 20.0
+TIMEOUT = scaled(20.0)
 WIDTH, HEIGHT = 320, 240
 K_MAX = 2
 FRAME = 'left_camera_optical_frame'

@@ -25,7 +25,7 @@ from vizzy_gaze.core.gaze import (
 )
 from vizzy_gaze.gaze_controller_node import HOLD_RESEND_S, PARAMETERS, GazeControllerNode
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
-from vizzy_runtime.testing import publish_until, spinning, wait_until
+from vizzy_runtime.testing import publish_until, scaled, spinning, wait_until
 from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 from vizzy_vision import kinematics
 
@@ -37,7 +37,7 @@ JointState = message('sensor_msgs/msg/JointState')
 TFMessage = message('tf2_msgs/msg/TFMessage')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
 
-TIMEOUT = 20.0
+TIMEOUT = scaled(20.0)
 DEFAULTS = {p.name: p.default for p in PARAMETERS}
 NAMES = list(kinematics.JOINT_NAMES)
 FX = 320.0 / math.tan(math.radians(85.4) / 2)

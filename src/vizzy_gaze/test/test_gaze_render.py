@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from vizzy_gaze.core.gaze import solve_fixation
+from vizzy_runtime.testing import no_renderer
 from vizzy_vision import kinematics
 
 mujoco = pytest.importorskip('mujoco')
@@ -27,7 +28,7 @@ def renderer_backend() -> str:
     try:
         return render_mod.select_backend()
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
 
 
 def _target_scene() -> object:

@@ -20,6 +20,7 @@ from vizzy_runtime.testing import (
     check_node_parameters,
     check_parameter_table,
     parameter_refusals,
+    scaled,
     spinning,
     wait_until,
 )
@@ -28,7 +29,7 @@ from vizzy_vision.camera import camera_matrix
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'object_map.yaml'
-TIMEOUT = 60.0
+TIMEOUT = scaled(60.0)
 CAMERA = 'left_camera_optical_frame'
 RGBD = 'rgbd_camera_optical_frame'
 K = camera_matrix(640, 480, 85.4)

@@ -18,6 +18,8 @@ from typing import Any
 
 import websockets
 
+from vizzy_runtime.testing import scaled
+
 SUBPROTOCOL = 'foxglove.sdk.v1'
 OLD_SUBPROTOCOL = 'foxglove.websocket.v1'   # the same protocol, the name older viewers offer
 MESSAGE_DATA = 0x01   # binary opcode: subscription id (u32 LE), log time (u64 LE), payload
@@ -69,7 +71,7 @@ async def _collect(url: str, topics: set[str], timeout: float,
     return session
 
 
-def collect(url: str, topics: set[str], timeout: float = 60.0,
+def collect(url: str, topics: set[str], timeout: float = scaled(60.0),
             subprotocols: tuple[str, ...] = (SUBPROTOCOL,)) -> Session:
     """Connect offering `subprotocols`, subscribe to `topics` as their channels are advertised,
     return when a message of each has arrived or after timeout (the caller checks what is
@@ -152,7 +154,7 @@ class RawClient:
                                 else bytes([0x80 | 126]) + struct.pack('>H', size))
         self.sock.sendall(head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(data)))
 
-    def subscribe(self, topic: str, timeout: float = 60.0, sub_id: int = 1) -> None:
+    def subscribe(self, topic: str, timeout: float = scaled(60.0), sub_id: int = 1) -> None:
         """Read until `topic` is advertised, then subscribe to it as `sub_id`."""
         deadline = time.monotonic() + timeout
         self.sock.settimeout(timeout)

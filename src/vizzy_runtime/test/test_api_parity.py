@@ -171,6 +171,7 @@ def _seam_imports(tree: ast.AST) -> set[str]:
     return names
 
 
+@pytest.mark.slow
 def test_every_seam_name_the_project_uses_is_checked():
     """The names imported from the seam anywhere in the project are in the snapshot (or are the
     seam's own), and so are the rclpy.<function>s called on its rclpy."""
@@ -193,6 +194,7 @@ def test_every_seam_name_the_project_uses_is_checked():
     assert not unchecked, f'rclpy functions with no signature check: {unchecked}'
 
 
+@pytest.mark.slow
 def test_nodes_use_no_bundled_extension():
     """Modules that import the seam call none of the bundled-only methods (they would raise
     AttributeError on rclpy)."""

@@ -30,6 +30,7 @@ from vizzy_runtime import msgs
 from vizzy_runtime.bag import BagError, BagReader, BagWriter, Player, QosProfile, bag_info, reindex
 from vizzy_runtime.bag.common import INFINITE_NS, parse_qos_profiles
 from vizzy_runtime.bag.play import ensure_type, offer_qos
+from vizzy_runtime.testing import scaled
 
 SRC = str(Path(__file__).resolve().parents[1])
 T0 = 1_700_000_000_000_000_000
@@ -267,6 +268,7 @@ KILLED_WRITER = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.slow
 def test_sigkilled_writer_is_recovered(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     bag = tmp_path / 'killed'
     proc = subprocess.Popen([sys.executable, '-c', KILLED_WRITER, str(bag), '4'],
@@ -278,7 +280,7 @@ def test_sigkilled_writer_is_recovered(tmp_path: Path, caplog: pytest.LogCapture
         assert lines == ['7', '14', '21', '28', 'waiting']
     finally:
         proc.kill()  # SIGKILL: no summary, no footer, no metadata.yaml
-        proc.wait(timeout=30)
+        proc.wait(timeout=scaled(30))
     assert not (bag / 'metadata.yaml').exists()
 
     with caplog.at_level(logging.WARNING, logger='vizzy_runtime.bag'):

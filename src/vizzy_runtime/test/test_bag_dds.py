@@ -21,6 +21,7 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 
 from vizzy_runtime import msgs  # noqa: E402
 from vizzy_runtime.bag import BagReader, BagWriter, QosProfile, Recorder  # noqa: E402
+from vizzy_runtime.testing import scaled
 
 SRC = str(Path(__file__).resolve().parents[1])
 T0 = 1_700_000_000_000_000_000
@@ -50,6 +51,7 @@ def wire(text: str) -> bytes:
     return data + b'\0' * (-len(data) % 4)  # as DDS delivers it
 
 
+@pytest.mark.slow
 def test_play_then_record_round_trip(tmp_path: Path) -> None:
     source, copy = tmp_path / 'source', tmp_path / 'copy'
     latched = QosProfile(durability='transient_local', depth=1)
@@ -66,14 +68,15 @@ def test_play_then_record_round_trip(tmp_path: Path) -> None:
 
     recorder = bag_cli('record', '-o', str(copy), '/talk', '/static')
     try:
-        player = bag_cli('play', str(source), '--rate', '2', '--wait-for-subscribers', '30')
-        out, err = player.communicate(timeout=90)
+        player = bag_cli('play', str(source), '--rate', '2', '--wait-for-subscribers',
+                         str(scaled(30)))
+        out, err = player.communicate(timeout=scaled(90))
         assert player.returncode == 0, err
         assert 'no subscriber' not in err  # the recorder matched before the first message
         assert '/talk: 10' in out
     finally:
         recorder.send_signal(signal.SIGINT)  # Ctrl-C: the bag must be finalized
-        out, err = recorder.communicate(timeout=60)
+        out, err = recorder.communicate(timeout=scaled(60))
     assert recorder.returncode == 0, err
     assert (copy / 'metadata.yaml').exists()
 
@@ -105,6 +108,7 @@ LATCHED_PUBLISHER = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.slow
 def test_recorder_gets_latched_and_late_topics(tmp_path: Path) -> None:
     publisher = subprocess.Popen([sys.executable, '-c', LATCHED_PUBLISHER], env=env(),
                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -116,8 +120,8 @@ def test_recorder_gets_latched_and_late_topics(tmp_path: Path) -> None:
         wait_for(lambda: recorder.counts.get('/latched', 0) == 1, 30, 'the latched message')
     finally:
         recorder.stop()
-        thread.join(timeout=60)
-        publisher.communicate(timeout=30)
+        thread.join(timeout=scaled(60))
+        publisher.communicate(timeout=scaled(30))
     assert not thread.is_alive()
     reader = BagReader(tmp_path / 'bag')
     (msg,) = list(reader.messages(topics=['/latched']))
@@ -127,12 +131,13 @@ def test_recorder_gets_latched_and_late_topics(tmp_path: Path) -> None:
     assert (qos.durability, qos.reliability, qos.depth) == ('transient_local', 'reliable', 1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_recorder_finalizes_on_signal_without_data(tmp_path: Path, sig: int) -> None:
     recorder = bag_cli('record', '-o', str(tmp_path / 'bag'), '/nothing_here')
     wait_for(lambda: (tmp_path / 'bag' / 'bag_0.mcap').exists(), 30, 'the recorder to start')
     recorder.send_signal(sig)
-    _out, err = recorder.communicate(timeout=60)
+    _out, err = recorder.communicate(timeout=scaled(60))
     assert recorder.returncode == 0, err
     reader = BagReader(tmp_path / 'bag')
     assert reader.message_count == 0 and reader.topics == {}
@@ -152,7 +157,7 @@ def test_recorder_skips_excluded_topics(tmp_path):
     thread.start()
     wait_for(lambda: recorder.counts.get('/keep_me', 0) == 1, 20, 'the kept topic')
     recorder.stop()
-    thread.join(20)
+    thread.join(scaled(20))
     assert set(BagReader(tmp_path / 'bag').topics) == {'/keep_me'}
 
 
@@ -168,6 +173,7 @@ FULL_DISK_RECORDER = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.slow
 def test_a_full_disk_ends_recording_with_one_line_and_a_readable_bag(tmp_path: Path) -> None:
     from vizzy_runtime import dds
     writer = dds.RawWriter('/filler', 'std_msgs/msg/String', dds.QoS(reliable=True, depth=50))
@@ -181,14 +187,14 @@ def test_a_full_disk_ends_recording_with_one_line_and_a_readable_bag(tmp_path: P
         wait_for(lambda: writer.matched_count() > 0 or recorder.poll() is not None, 30,
                  'the recorder')
         rng = random.Random(1)
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + scaled(60)
         i = 0
         while recorder.poll() is None and time.monotonic() < deadline:  # incompressible text
             writer.write(wire(f'{i} '
                               + ''.join(rng.choice('abcdefghij0123456789') for _ in range(20_000))))
             i += 1
             time.sleep(0.002)
-        _out, err = recorder.communicate(timeout=60)
+        _out, err = recorder.communicate(timeout=scaled(60))
     finally:
         if recorder.poll() is None:
             recorder.kill()

@@ -17,7 +17,7 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 from vizzy_runtime import cli, dds, msgs  # noqa: E402
 from vizzy_runtime.bag import BagWriter, Player, QosProfile  # noqa: E402
 from vizzy_runtime.bag.play import DEFAULT_CLOCK_HZ, parse_remaps  # noqa: E402
-from vizzy_runtime.testing import wait_until  # noqa: E402
+from vizzy_runtime.testing import scaled, wait_until  # noqa: E402
 
 T0 = 1_700_000_000_000_000_000
 GAP_NS = 100_000_000       # 10 messages, 100 ms apart
@@ -59,7 +59,7 @@ def test_clock_remap_and_start_offset(tmp_path: Path) -> None:
     thread = threading.Thread(target=lambda: counts.update(player.run(handle_signals=False)))
     try:
         thread.start()
-        thread.join(120)
+        thread.join(scaled(120))
         assert not thread.is_alive()
         got: list[bytes] = []
         ticks: list[int] = []
@@ -70,7 +70,7 @@ def test_clock_remap_and_start_offset(tmp_path: Path) -> None:
                 c = msgs.deserialize(raw, 'rosgraph_msgs/msg/Clock').clock
                 ticks.append(c.sec * 10**9 + c.nanosec)
             return len(got) >= 5
-        assert wait_until(all_in, 30), got
+        assert wait_until(all_in, scaled(30)), got
         assert counts == {'/replayed': 5}
         assert got == sent[5:]          # the messages from 0.45 s on, under the new name
         assert chatter.take(100) == []  # nothing on the old name

@@ -18,6 +18,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from vizzy_runtime.testing import scaled
+
+pytestmark = pytest.mark.slow  # starts processes or a whole graph, or takes more than ~5 s
+
 SRC = str(Path(__file__).resolve().parents[1])
 DOMAIN = os.environ.get('ROS_DOMAIN_ID') or str(random.randint(100, 200))
 
@@ -78,7 +82,7 @@ CHILD = textwrap.dedent('''
 def test_sigint_at_any_point_finishes_the_bag(tmp_path: Path, point: str) -> None:
     bag = tmp_path / 'bag'
     proc = subprocess.run([sys.executable, '-c', CHILD, point, str(bag)], capture_output=True,
-                          text=True, timeout=60,
+                          text=True, timeout=scaled(60),
                           env={**os.environ, 'PYTHONPATH': SRC, 'ROS_DOMAIN_ID': DOMAIN,
                                'PYTHONFAULTHANDLER': '1'})
     assert proc.returncode == 0, proc.stderr[-2000:]

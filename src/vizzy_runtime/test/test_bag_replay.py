@@ -13,10 +13,12 @@ import pytest
 from vizzy_runtime import dds, msgs
 from vizzy_runtime.bag import Player
 from vizzy_runtime.launcher import Launcher, load_graph
-from vizzy_runtime.testing import STOP_GRACE_S, repo_root, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, repo_root, scaled, wait_until
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import graph_subset  # noqa: E402
+
+pytestmark = pytest.mark.slow  # starts processes or a whole graph, or takes more than ~5 s
 
 OUTPUTS = {   # node -> its main output (one message per input frame, pair or cloud)
     'foveation': ('/foveation/image', 'sensor_msgs/msg/Image'),
@@ -47,7 +49,7 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
         launcher.start()
         topics = {t for t, _ in OUTPUTS.values()}
         assert wait_until(lambda: topics <= {e.topic for e in disc.endpoints() if e.is_writer},
-                          120), \
+                          scaled(120)), \
             'the nodes did not come up'
         thread = threading.Thread(target=lambda: played.update(player.run(handle_signals=False)))
         thread.start()
@@ -59,9 +61,9 @@ def test_every_perception_node_answers_a_shipped_bag(tmp_path: Path, scene: str)
                 if name in ('cylinder_detector', 'mot_planner'):
                     kept[name] += [data for data, _ in samples]
             return all(got.values()) and not thread.is_alive()
-        wait_until(answered, 90)
+        wait_until(answered, scaled(90))
         player.stop()
-        thread.join(30)
+        thread.join(scaled(30))
     finally:
         codes = launcher.stop()
         for r in readers.values():

@@ -18,7 +18,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
+
+pytestmark = pytest.mark.slow  # starts processes or a whole graph, or takes more than ~5 s
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(100, 200)))
 
@@ -47,14 +49,14 @@ DEFAULT_QOS = ['QoS profile:', '  Reliability: RELIABLE', '  History (Depth): KE
 
 
 def vizzy(*args: str, code: int = 0, stdin: str | None = None) -> str:
-    proc = subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=120,
+    proc = subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=scaled(120),
                           input=stdin, env={**os.environ, 'VIZZY_RUNTIME': 'bundled'})
     assert proc.returncode == code, f'vizzy {" ".join(args)}: {proc.returncode}\n{proc.stderr}'
     assert 'Traceback' not in proc.stderr, proc.stderr
     return proc.stdout if code == 0 else proc.stderr
 
 
-def until(check: object, timeout: float = 60.0) -> object:
+def until(check: object, timeout: float = scaled(60.0)) -> object:
     """Run a CLI check until it holds (discovery on a loaded machine can take a second try)."""
     deadline = time.monotonic() + timeout
     while True:
@@ -74,13 +76,13 @@ def talker(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
                                 stderr=subprocess.STDOUT,
                                 env={**os.environ, 'VIZZY_RUNTIME': 'bundled'})
     try:
-        assert wait_until(lambda: 'up' in log.read_text() or proc.poll() is not None, 60), \
+        assert wait_until(lambda: 'up' in log.read_text() or proc.poll() is not None, scaled(60)), \
             log.read_text()
         assert proc.poll() is None, log.read_text()
         yield log
     finally:
         proc.terminate()
-        proc.wait(30)
+        proc.wait(scaled(30))
 
 
 def test_topic_info_counts_and_verbose_endpoints(talker: Path) -> None:
@@ -145,7 +147,8 @@ def test_service_list_type_and_call(talker: Path) -> None:
     assert vizzy('service', 'type', '/issue29/talker/list_parameters') == \
         'rcl_interfaces/srv/ListParameters\n'
     out = vizzy('service', 'call', '/issue29/talker/get_parameters',
-                'rcl_interfaces/srv/GetParameters', '{names: [levels]}', '--timeout', '30')
+                'rcl_interfaces/srv/GetParameters', '{names: [levels]}',
+                '--timeout', str(scaled(30)))
     request, response = out.split('\n\nresponse:\n')
     assert request.endswith("making request: rcl_interfaces.srv.GetParameters_Request("
                             "names=['levels'])")
@@ -153,7 +156,7 @@ def test_service_list_type_and_call(talker: Path) -> None:
                                'rcl_interfaces.msg.ParameterValue(type=2, bool_value=False, '
                                'integer_value=5,'), response
     out = vizzy('service', 'call', '/issue29/talker/set_parameters',
-                'rcl_interfaces/srv/SetParameters', '--stdin', '--timeout', '30',
+                'rcl_interfaces/srv/SetParameters', '--stdin', '--timeout', str(scaled(30)),
                 stdin='{parameters: [{name: levels, value: {type: 2, integer_value: 7}}]}')
     assert 'SetParametersResult(successful=True' in out, out
     assert vizzy('param', 'get', '/issue29/talker', 'levels') == 'Integer value is: 7\n'
@@ -167,7 +170,7 @@ def test_topic_pub_reaches_a_subscriber_and_echo_prints_yaml(talker: Path) -> No
     assert out.endswith('publisher: beginning loop\n'
                         "publishing #1: std_msgs.msg.String(data='issue 29')\n\n"
                         "publishing #2: std_msgs.msg.String(data='issue 29')\n\n"), out
-    assert wait_until(lambda: talker.read_text().count('heard issue 29') >= 2, 30), \
+    assert wait_until(lambda: talker.read_text().count('heard issue 29') >= 2, scaled(30)), \
         talker.read_text()
     out = vizzy('topic', 'echo', '/chatter', '-n', '2')
     docs = out.split('---\n')

@@ -16,12 +16,13 @@ import yaml
 from vizzy_runtime import cli, cli_interface, msg_yaml, msgs
 from vizzy_runtime.loopback import WILDCARD_V4
 from vizzy_runtime.rclpy_compat import arguments
+from vizzy_runtime.testing import scaled
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']
 REAL_SHARE = Path(__file__).resolve().parents[3] / '.venv-ros' / 'share'   # ROS 2's .msg files
 
 
-def vizzy(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+def vizzy(*args: str, timeout: float = scaled(60)) -> subprocess.CompletedProcess[str]:
     return subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=timeout)
 
 
@@ -148,6 +149,7 @@ def test_repr_is_rclpy_s() -> None:
 
 # --- interface list / show ---------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_interface_show_expands_nested_types_with_tabs() -> None:
     proc = vizzy('interface', 'show', 'active_vision_msgs/msg/CylinderArray')
     assert proc.returncode == 0, proc.stderr
@@ -171,6 +173,7 @@ def test_interface_show_expands_nested_types_with_tabs() -> None:
            'id)' in every
 
 
+@pytest.mark.slow
 def test_interface_show_of_standard_types_and_services() -> None:
     lines = list(cli_interface.show_lines('geometry_msgs/msg/PoseStamped'))
     assert lines[:5] == ['std_msgs/Header header', '\tbuiltin_interfaces/Time stamp',
@@ -214,6 +217,7 @@ def test_generated_definitions_match_ros2_s_files() -> None:
     assert compared > 100
 
 
+@pytest.mark.slow
 def test_interface_list_sections() -> None:
     proc = vizzy('interface', 'list')
     assert proc.returncode == 0, proc.stderr
@@ -227,6 +231,7 @@ def test_interface_list_sections() -> None:
 
 # --- one-line errors (issue 29 item 6) ------------------------------------------------------------
 
+@pytest.mark.slow
 def test_an_unknown_type_is_named_not_a_keyerror_repr() -> None:
     said = one_line_error(vizzy('topic', 'echo', '/nope', 'foo/Bar', '--timeout', '0.5'))
     assert said.startswith("vizzy: The passed message type 'foo/Bar' is invalid"), said
@@ -236,12 +241,14 @@ def test_an_unknown_type_is_named_not_a_keyerror_repr() -> None:
     assert "'std_msgs/msg/Strin' is invalid" in said
 
 
+@pytest.mark.slow
 def test_hz_waits_no_longer_than_its_duration() -> None:
     said = one_line_error(vizzy('topic', 'hz', '/nope_issue29', '--duration', '1.5'))
     assert said == ('vizzy: no publisher on /nope_issue29 after 1.5 s (give its type to wait '
                     'anyway)')   # before: after 10 s, whatever --duration
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('argv', [['view', '--port', '70000'], ['view', '--port', '-1'],
                                   ['launch', '--view-port', '70000']])
 def test_ports_out_of_range_are_refused_by_the_parser(argv: list[str]) -> None:
@@ -265,9 +272,10 @@ def test_a_parameter_without_a_value_says_name_value() -> None:
     assert str(err.value) == "-p 'k_max': expected 'name:=value' (e.g. k_max:=1)"
 
 
+@pytest.mark.slow
 def test_demo_summary_of_a_mistyped_bag_is_one_line(tmp_path: Path) -> None:
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.demo_summary',
                            str(tmp_path / 'typo'), '-o', str(tmp_path / 'page.png')],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=scaled(120))
     assert proc.returncode == 2
     assert one_line_error(proc) == f'demo_summary: {tmp_path / "typo"}: no such bag directory'

@@ -9,7 +9,9 @@ import sys
 
 import pytest
 
-pytestmark = pytest.mark.live
+from vizzy_runtime.testing import scaled
+
+pytestmark = [pytest.mark.live, pytest.mark.slow]
 
 SCRIPT = r'''
 import os, signal, threading, time
@@ -52,7 +54,7 @@ def test_a_negative_clock_sample_does_not_end_the_node():
     proc = subprocess.Popen([sys.executable, '-c', SCRIPT], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
-        stdout, stderr = proc.communicate(timeout=120)
+        stdout, stderr = proc.communicate(timeout=scaled(120))
     except subprocess.TimeoutExpired:
         proc.kill()
         stdout, stderr = proc.communicate()

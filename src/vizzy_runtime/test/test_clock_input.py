@@ -10,7 +10,7 @@ from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter
 from vizzy_runtime.ros import message
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
 
 Clock = message('rosgraph_msgs/msg/Clock')
 
@@ -32,7 +32,7 @@ def test_invalid_clock_samples_are_refused_and_counted(context, capfd):
     fired: list[int] = []
     node.create_timer(0.05, lambda: fired.append(node.get_clock().now().nanoseconds))
 
-    def spin_until(predicate, timeout: float = 20.0) -> bool:
+    def spin_until(predicate, timeout: float = scaled(20.0)) -> bool:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if predicate():
@@ -40,7 +40,7 @@ def test_invalid_clock_samples_are_refused_and_counted(context, capfd):
             executor.spin_once(0.02)
         return predicate()
 
-    assert wait_until(lambda: pub.get_subscription_count() > 0, 20)
+    assert wait_until(lambda: pub.get_subscription_count() > 0, scaled(20))
     pub.publish(_clock(5, 0))
     assert spin_until(lambda: node.get_clock().now().nanoseconds == 5_000_000_000)
     junk = (_clock(-1, 0), _clock(-2**31, 999_999_999), _clock(7, 1_000_000_000),

@@ -9,6 +9,12 @@ process stops. The scenario runs in a child process so that a regression fails i
 import subprocess
 import sys
 
+import pytest
+
+from vizzy_runtime.testing import scaled
+
+pytestmark = pytest.mark.slow  # each test runs its scenario in a child process
+
 SCENARIO = r'''
 import threading, time
 from vizzy_runtime import dds, msgs
@@ -40,7 +46,7 @@ print('received', len(got))
 def test_write_while_a_local_listener_runs_does_not_deadlock():
     try:
         out = subprocess.run([sys.executable, '-c', SCENARIO], capture_output=True, text=True,
-                             timeout=60)
+                             timeout=scaled(60))
     except subprocess.TimeoutExpired:
         raise AssertionError('two writers and a same-process listener deadlocked') from None
     assert out.returncode == 0, out.stderr[-2000:]
@@ -81,7 +87,7 @@ for make in (dds.participant, lambda: dds.RawWriter(topic + '_late', 'std_msgs/m
 def test_after_the_exit_handler_no_participant_is_made_and_the_process_ends():
     try:   # a normal exit, finalization included, with the listener and the writer thread alive
         out = subprocess.run([sys.executable, '-c', EXIT_SCENARIO], capture_output=True,
-                             text=True, timeout=60)
+                             text=True, timeout=scaled(60))
     except subprocess.TimeoutExpired:
         raise AssertionError('the process hung at exit') from None
     assert out.returncode == 0, out.stderr[-2000:]

@@ -29,7 +29,7 @@ from vizzy_runtime.convert import image_to_numpy, numpy_to_image
 from vizzy_runtime.foxglove_layout import LAYOUT_FILE, layout_json, topics_named
 from vizzy_runtime.launcher import Launcher, default_graph_file, load_graph
 from vizzy_runtime.live_view import CLIENT_BACKLOG, LiveView, to_send
-from vizzy_runtime.testing import STOP_GRACE_S, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, scaled, wait_until
 from vizzy_runtime.ws_relay import RELAY_CHUNK, UPSTREAM_RCVBUF, rewrite_request, rewrite_response
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -95,14 +95,16 @@ def test_a_client_that_stops_reading_is_held_to_the_newest_backlog() -> None:
         struct.pack_into('<i', data, 4, seq)  # header.stamp.sec, after the CDR header
         before = view.sent[topic]
         writer.write(data)
-        assert wait_until(lambda: view.sent[topic] > before, 30), f'image {seq} not passed on'
+        assert wait_until(lambda: view.sent[topic] > before, scaled(30)), (
+            f'image {seq} not passed on')
 
     try:
-        assert wait_until(lambda: topic in view.channels, 60), 'the image topic was not served'
+        assert wait_until(lambda: topic in view.channels, scaled(60)), (
+            'the image topic was not served')
         client = RawClient(port, rcvbuf=STALLED_RCVBUF)
-        client.sock.settimeout(60)
+        client.sock.settimeout(scaled(60))
         client.subscribe(topic)
-        assert wait_until(lambda: writer.matched_count() >= 1, 60), 'the view never read it'
+        assert wait_until(lambda: writer.matched_count() >= 1, scaled(60)), 'the view never read it'
         publish(0)
         assert struct.unpack_from('<i', client.data()[1], 4)[0] == 0  # it flows; now stop reading
         for seq in range(1, last + 1):
@@ -146,7 +148,7 @@ def test_a_reading_client_stays_connected_while_many_topics_appear(
     view = LiveView(port=0)
     port = view.start()
     client = RawClient(port)
-    client.sock.settimeout(60)
+    client.sock.settimeout(scaled(60))
     try:
         client.frame()  # serverInfo: connected before the topics appear
         endpoints.extend(dds.Endpoint(t, 'std_msgs/msg/String', dds.QoS(), t.encode(), b'peer',
@@ -183,7 +185,7 @@ def string_view() -> Iterator[tuple[LiveView, str]]:
     view = LiveView(port=0)
     view.start()
     try:
-        assert wait_until(lambda: topic in view.channels, 60), 'the topic was not served'
+        assert wait_until(lambda: topic in view.channels, scaled(60)), 'the topic was not served'
         yield view, topic
     finally:
         view.stop()
@@ -201,7 +203,7 @@ def test_a_viewer_offering_either_name_gets_server_info_channels_and_messages(
     foxglove.websocket.v1. A WebSocket client library (which fails a handshake naming a protocol
     it did not offer) now gets serverInfo, the advertisement and the message."""
     view, topic = string_view
-    session = collect(view.url, {topic}, timeout=60, subprotocols=offer)
+    session = collect(view.url, {topic}, timeout=scaled(60), subprotocols=offer)
     assert session.subprotocol == chosen
     assert session.server_info.get('name') == 'vizzy'
     assert session.channels[topic]['schemaName'] == 'std_msgs/msg/String'
@@ -213,7 +215,7 @@ def test_an_old_name_client_on_a_raw_socket_reads_frames_through_the_relay(
         string_view: tuple[LiveView, str]) -> None:
     view, topic = string_view
     client = RawClient(view.port, subprotocols=(OLD_SUBPROTOCOL,))
-    client.sock.settimeout(60)
+    client.sock.settimeout(scaled(60))
     try:
         assert client.subprotocol == OLD_SUBPROTOCOL
         opcode, payload = client.frame()
@@ -228,7 +230,7 @@ def test_an_old_name_client_on_a_raw_socket_reads_frames_through_the_relay(
 def test_a_plain_http_request_gets_a_clear_answer(string_view: tuple[LiveView, str]) -> None:
     """The SDK closes a non-upgrade request without a word; the view says what it is."""
     view, _topic = string_view
-    with socket.create_connection(('127.0.0.1', view.port), timeout=30) as sock:
+    with socket.create_connection(('127.0.0.1', view.port), timeout=scaled(30)) as sock:
         sock.sendall(b'GET / HTTP/1.1\r\nHost: x\r\n\r\n')
         answer = b''
         while chunk := sock.recv(4096):
@@ -238,6 +240,7 @@ def test_a_plain_http_request_gets_a_clear_answer(string_view: tuple[LiveView, s
 
 
 # on the real tier the nodes run on the real rclpy (Fast DDS); the view on Cyclone
+@pytest.mark.slow
 @pytest.mark.live
 def test_foxglove_client_decodes_the_graph(tmp_path: Path) -> None:
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
@@ -248,8 +251,8 @@ def test_foxglove_client_decodes_the_graph(tmp_path: Path) -> None:
     try:
         launcher.start()
         layout_topics = topics_named(json.loads(LAYOUT_FILE.read_text()))
-        wait_until(lambda: layout_topics | set(DECODED) <= set(view.channels), 120)
-        session = collect(f'ws://127.0.0.1:{port}', set(DECODED), timeout=120)
+        wait_until(lambda: layout_topics | set(DECODED) <= set(view.channels), scaled(120))
+        session = collect(f'ws://127.0.0.1:{port}', set(DECODED), timeout=scaled(120))
     finally:
         launcher.stop()
         view.stop()

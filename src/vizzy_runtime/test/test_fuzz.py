@@ -30,6 +30,7 @@ def test_mutations_are_reproducible_and_varied():
     assert len({data for _, data in draws}) > 250
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', NODES)
 def test_a_node_survives_bad_input_on_every_topic(name, tmp_path):
     report = fuzz_node(name, FUZZ_PER_TOPIC, seed=1, log_dir=tmp_path, grace_s=STOP_GRACE_S)

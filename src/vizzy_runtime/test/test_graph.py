@@ -45,10 +45,11 @@ from cyclonedds.topic import Topic  # noqa: E402
 from vizzy_runtime.rclpy_compat import graph  # noqa: E402
 from vizzy_runtime.rclpy_compat.context import Context  # noqa: E402
 from vizzy_runtime.rclpy_compat.node import Node  # noqa: E402
+from vizzy_runtime.testing import scaled  # noqa: E402
 
 PKG_ROOT = Path(__file__).resolve().parents[1]
 T = graph.TYPENAME
-TIMEOUT = 15.0
+TIMEOUT = scaled(15.0)
 
 
 def wait_for(predicate: Callable[[], Any], what: str, timeout: float = TIMEOUT) -> Any:
@@ -219,6 +220,7 @@ def test_cdr_is_byte_identical_to_cyclone_serializer() -> None:
         assert graph.parse_message(ours) == (gid, nodes)
 
 
+@pytest.mark.slow
 def test_two_processes_announce_their_nodes(context: Context, observer: Observer) -> None:
     suffix = uuid.uuid4().hex[:8]
     String = msgs.get_message('std_msgs/msg/String')

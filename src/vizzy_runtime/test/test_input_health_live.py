@@ -10,6 +10,7 @@ import pytest
 from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC, InputHealth
 from vizzy_runtime.node_tools import guarded
 from vizzy_runtime.ros import Node, SingleThreadedExecutor, message
+from vizzy_runtime.testing import scaled
 
 pytestmark = pytest.mark.live
 
@@ -17,7 +18,7 @@ DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 DiagnosticStatus = message('diagnostic_msgs/msg/DiagnosticStatus')
 
 
-def _spin_until(executor, predicate, timeout: float = 20.0) -> bool:
+def _spin_until(executor, predicate, timeout: float = scaled(20.0)) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if predicate():

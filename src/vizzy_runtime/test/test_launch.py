@@ -28,7 +28,7 @@ from vizzy_runtime.launcher import (
     node_command,
     node_namespace,
 )
-from vizzy_runtime.testing import STOP_GRACE_S, bound_addresses, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, bound_addresses, scaled, wait_until
 
 OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/tracks',
            '/objects', '/vizzy/left/image_raw', '/vizzy/right/image_raw', '/joint_states',
@@ -36,6 +36,7 @@ OUTPUTS = {'/gaze/state', '/foveation/image', '/ses/cells', '/cylinders', '/mot/
 
 
 # on the real tier every node runs on the real rclpy (VIZZY_RUNTIME=ros is inherited)
+@pytest.mark.slow
 @pytest.mark.live
 def test_graph_starts_and_stops_cleanly(tmp_path):
     graph = load_graph(default_graph_file())
@@ -57,7 +58,7 @@ def test_graph_starts_and_stops_cleanly(tmp_path):
 
     try:
         launcher.start()
-        up = wait_until(all_outputs_flowing, 90)
+        up = wait_until(all_outputs_flowing, scaled(90))
         running = launcher.poll()
         sockets = {name: bound_addresses(proc.pid) for name, proc in launcher.procs.items()}
         cpu = launcher.cpu_seconds()       # what the benchmarks read: every node, CPU so far
@@ -124,6 +125,7 @@ def test_a_namespaced_graph_moves_every_node(tmp_path):
     assert build_parser().parse_args(['launch', '--namespace', '/head2']).namespace == '/head2'
 
 
+@pytest.mark.slow
 def test_graph_env_sets_defaults_the_caller_overrides(tmp_path, monkeypatch):
     graph = load_graph(default_graph_file())
     assert graph.env['OMP_NUM_THREADS'] == '1' and graph.env['OPENBLAS_NUM_THREADS'] == '1'
@@ -160,14 +162,15 @@ def test_bad_graphs_are_clear_errors(tmp_path):
         find_entry_point('nope_pkg', 'x')
 
 
+@pytest.mark.slow
 def test_cli_reports_errors_in_one_line():
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'run', 'nope_pkg', 'x'],
-                          capture_output=True, text=True, timeout=60)
+                          capture_output=True, text=True, timeout=scaled(60))
     assert proc.returncode == 2
     assert proc.stderr.strip() == ("vizzy: package 'nope_pkg' not found or has no executables "
                                    '(run `make setup`)')
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'bag', 'record', '-d', '1'],
-                          capture_output=True, text=True, timeout=60)
+                          capture_output=True, text=True, timeout=scaled(60))
     assert (proc.returncode, proc.stderr.strip()) == (
         2, 'vizzy: bag record: give topics to record or -a/--all (as ros2 bag record)')
 
@@ -182,13 +185,15 @@ def test_cli_reports_errors_in_one_line():
                                       'positive number'),
     (['bag', 'record', '-a', '-d', 'inf'], "argument -d/--duration: 'inf': expected a positive"),
 ])
+@pytest.mark.slow
 def test_bad_numbers_are_refused_in_one_line_before_anything_starts(argv, said):
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', *argv], capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=scaled(60))
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert said in proc.stderr and not proc.stdout
 
 
+@pytest.mark.slow
 def test_a_parameter_value_no_node_could_take_is_refused_before_asking_one():
     from vizzy_runtime.param_cli import parse_value
     assert parse_value('levels', '5').value == 5
@@ -199,11 +204,12 @@ def test_a_parameter_value_no_node_could_take_is_refused_before_asking_one():
             parse_value('levels', bad)
     proc = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'param', 'set',
                            '/nowhere', 'levels', '99999999999999999999999'],
-                          capture_output=True, text=True, timeout=60)
+                          capture_output=True, text=True, timeout=scaled(60))
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert 'cannot read value' in proc.stderr and '64-bit' in proc.stderr
 
 
+@pytest.mark.slow
 def test_node_list_warns_of_nodes_that_share_a_name():
     """Two processes each with a node /twin (a second graph on the domain): `vizzy node list`
     lists the name once and warns on stderr, as ros2 node list does; one alone: no warning."""
@@ -217,8 +223,8 @@ def test_node_list_warns_of_nodes_that_share_a_name():
     try:
         def listing() -> subprocess.CompletedProcess[str]:
             return subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'node', 'list',
-                                   '--wait', '3'], capture_output=True, text=True, timeout=60,
-                                  env=env)
+                                   '--wait', '3'], capture_output=True, text=True,
+                                  timeout=scaled(60), env=env)
         proc = listing()
         for _ in range(5):              # discovery of both may take a moment on a loaded machine
             if proc.stdout.split().count('/twin') == 1 and '/twin (2)' in proc.stderr:
@@ -239,6 +245,7 @@ def test_node_list_warns_of_nodes_that_share_a_name():
             twin.kill()
 
 
+@pytest.mark.slow
 def test_the_launcher_finds_the_graph_s_names_taken_before_it_starts():
     """Issue 28 item 7: a second graph on the domain was silent chaos (two /clock sources, names
     listed once). Before starting, `vizzy launch` names the nodes whose names are taken."""
@@ -286,6 +293,7 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell's background job starts
 
 
+@pytest.mark.slow
 def test_nodes_end_when_their_launcher_is_killed(tmp_path):
     """SIGKILL (or the OOM killer) gives the launcher no chance to stop its nodes: they end on
     their own (PR_SET_PDEATHSIG), standbys too, instead of running on orphaned."""
@@ -307,8 +315,8 @@ def test_nodes_end_when_their_launcher_is_killed(tmp_path):
                 break
         assert len(pids) == 1 and _pid_running(pids[0]), ''.join(lines)
         proc.kill()
-        proc.wait(timeout=30)
-        deadline = time.monotonic() + 60
+        proc.wait(timeout=scaled(30))
+        deadline = time.monotonic() + scaled(60)
         while _pid_running(pids[0]) and time.monotonic() < deadline:
             time.sleep(0.2)
     finally:
@@ -338,6 +346,7 @@ def test_end_with_launcher_arms_only_under_a_launcher() -> None:
     assert not end_with_launcher({LAUNCHER_PID_ENV: 'x'})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
 def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
     """What timeout, systemd, docker stop, CI cancels and `kill -INT` send: no node may outlive
@@ -364,7 +373,7 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
                 break
         assert len(pids) == 2 and all(_pid_running(p) for p in pids), ''.join(lines)
         proc.send_signal(sig)
-        out, _ = proc.communicate(timeout=120)
+        out, _ = proc.communicate(timeout=scaled(120))
     finally:
         watchdog.cancel()
         if proc.poll() is None:
@@ -377,6 +386,7 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
     assert not [p for p in pids if _pid_running(p)], f'orphaned nodes {pids}:\n{text[-3000:]}'
 
 
+@pytest.mark.slow
 def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path):
     graph = Graph(nodes=[])
     log = open(tmp_path / 'launch.log', 'w+')  # noqa: SIM115 - the launcher's log
@@ -392,7 +402,7 @@ def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path
     launcher.procs['crashed'] = subprocess.Popen([sys.executable, '-c', 'raise SystemExit(3)'],
                                                  start_new_session=True)
     assert launcher.procs['stubborn'].stdout.readline() == 'ready\n'
-    launcher.procs['crashed'].wait(30)
+    launcher.procs['crashed'].wait(scaled(30))
     codes = launcher.stop()
     log.seek(0)
     text = log.read()
@@ -406,6 +416,7 @@ def test_stop_escalates_and_names_the_node_without_calling_it_a_failure(tmp_path
     assert 'most recent call first' in stacks and 'File "<string>", line 1' in stacks, stacks
 
 
+@pytest.mark.slow
 def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
     """SIGKILL a node of a respawning graph: the launcher starts it again and /gaze/state flows
     from the new process. Prints the time from the kill to the first new message (the respawn
@@ -422,14 +433,15 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
                            dds.QoS(reliable=False))
     try:
         launcher.start()
-        assert wait_until(lambda: bool(reader.take(8)), 60), 'gaze_controller never published'
+        assert wait_until(lambda: bool(reader.take(8)), scaled(60)), (
+            'gaze_controller never published')
         first = launcher.procs['gaze_controller']
         killed_at = time.monotonic()
         os.killpg(first.pid, signal.SIGKILL)
-        assert wait_until(lambda: first.poll() is not None, 30)
+        assert wait_until(lambda: first.poll() is not None, scaled(30))
         reader.take(64)  # what the first process sent before it died
         assert wait_until(lambda: launcher.procs['gaze_controller'] is not first
-                          and bool(reader.take(8)), 60)
+                          and bool(reader.take(8)), scaled(60))
         back_s = time.monotonic() - killed_at
         running = launcher.poll()
     finally:
@@ -445,6 +457,7 @@ def test_a_killed_node_respawns_and_its_outputs_flow_again(tmp_path):
     assert codes == {'gaze_controller': 0}, text
 
 
+@pytest.mark.slow
 def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
     graph = Graph(nodes=[NodeSpec('vizzy_gaze', 'gaze_controller', 'bad',
                                   respawn_max_retries=1,
@@ -457,13 +470,13 @@ def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
     launcher = Launcher(graph, output=log, grace_s=STOP_GRACE_S)
     try:
         launcher.start()
-        assert wait_until(lambda: launcher.poll()['bad'] is not None, 60)
+        assert wait_until(lambda: launcher.poll()['bad'] is not None, scaled(60))
         for _ in range(2):  # killed, respawned once, killed again: no more
-            assert wait_until(lambda: launcher.poll()['twice'] is None, 60)
+            assert wait_until(lambda: launcher.poll()['twice'] is None, scaled(60))
             proc = launcher.procs['twice']
             os.killpg(proc.pid, signal.SIGKILL)
-            assert wait_until(lambda proc=proc: proc.poll() is not None, 30)
-        launcher.wait(60)  # returns: every node has exited for good
+            assert wait_until(lambda proc=proc: proc.poll() is not None, scaled(30))
+        launcher.wait(scaled(60))  # returns: every node has exited for good
         codes = launcher.poll()
     finally:
         launcher.stop()
@@ -474,6 +487,7 @@ def test_respawn_stops_at_a_start_up_error_and_at_max_retries(tmp_path):
     assert 'process bad has finished (exit code 2) (a start-up error: not respawned)' in text, text
 
 
+@pytest.mark.slow
 def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, monkeypatch):
     """respawn_standby: a spare process with the node's modules imported waits beside the node;
     after a SIGKILL it takes over (same pid as the spare) and /gaze/state flows from it; a new spare
@@ -493,20 +507,22 @@ def test_a_standby_takes_over_a_killed_node_and_is_dismissed_at_stop(tmp_path, m
     spares = []
     try:
         launcher.start()
-        assert wait_until(lambda: bool(reader.take(8)), 60), 'gaze_controller never published'
-        assert wait_until(lambda: 'gaze_controller' in launcher.standbys, 30)
+        assert wait_until(lambda: bool(reader.take(8)), scaled(60)), (
+            'gaze_controller never published')
+        assert wait_until(lambda: 'gaze_controller' in launcher.standbys, scaled(30))
         spare = launcher.standbys['gaze_controller']
         spares.append(spare)
         assert wait_until(lambda: spare.pid in launcher.ready_standbys,
-                          60), 'the standby never got ready'
+                          scaled(60)), 'the standby never got ready'
         first = launcher.procs['gaze_controller']
         killed_at = time.monotonic()
         os.killpg(first.pid, signal.SIGKILL)
-        assert wait_until(lambda: launcher.procs['gaze_controller'] is spare, 30)
+        assert wait_until(lambda: launcher.procs['gaze_controller'] is spare, scaled(30))
         reader.take(64)
-        assert wait_until(lambda: bool(reader.take(8)), 60), 'the standby never published'
+        assert wait_until(lambda: bool(reader.take(8)), scaled(60)), 'the standby never published'
         back_s = time.monotonic() - killed_at
-        assert wait_until(lambda: launcher.standbys.get('gaze_controller') not in (None, spare), 30)
+        assert wait_until(lambda: launcher.standbys.get('gaze_controller') not in (None, spare),
+                          scaled(30))
         spares.append(launcher.standbys['gaze_controller'])
     finally:
         codes = launcher.stop()

@@ -10,7 +10,9 @@ import pytest
 
 from vizzy_runtime.lockstep import Conductor, Quiescence, process_cpu_seconds
 from vizzy_runtime.ros import Context, Node, Parameter, SingleThreadedExecutor, message
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import no_renderer, scaled, wait_until
+
+pytestmark = pytest.mark.slow  # starts processes or a whole graph, or takes more than ~5 s
 
 Clock = message('rosgraph_msgs/msg/Clock')
 
@@ -23,10 +25,10 @@ def test_a_busy_process_is_not_quiet_and_a_sleeping_one_is() -> None:
     busy = _child('while True: pass')
     idle = _child('import time; time.sleep(60)')
     try:
-        assert wait_until(lambda: (process_cpu_seconds(busy.pid) or 0.0) > 0.05, 30.0)
+        assert wait_until(lambda: (process_cpu_seconds(busy.pid) or 0.0) > 0.05, scaled(30.0))
         assert not Quiescence(lambda: [busy.pid]).wait(timeout_s=0.2)
         quiet = Quiescence(lambda: [idle.pid], polls=3)
-        assert quiet.wait(timeout_s=30.0) and quiet.looks >= 3
+        assert quiet.wait(timeout_s=scaled(30.0)) and quiet.looks >= 3
         assert (process_cpu_seconds(idle.pid) or 0.0) < 5.0
     finally:
         busy.kill()
@@ -34,7 +36,7 @@ def test_a_busy_process_is_not_quiet_and_a_sleeping_one_is() -> None:
         busy.wait()
         idle.wait()
     assert process_cpu_seconds(busy.pid) is None            # gone: None, no error
-    assert Quiescence(lambda: [busy.pid]).wait(timeout_s=1.0)   # nothing left to wait for
+    assert Quiescence(lambda: [busy.pid]).wait(timeout_s=scaled(1.0))   # nothing left to wait for
 
 
 @pytest.mark.live
@@ -44,7 +46,7 @@ def test_the_conductor_steps_a_lockstep_sim_tick_by_tick() -> None:
     try:
         render.select_backend()
     except render.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
     ctx = Context()
     ctx.init(['test'])
     sim = SimNode(context=ctx, cli_args=['--ros-args', '-r', '__ns:=/conducted'],
@@ -70,16 +72,16 @@ def test_the_conductor_steps_a_lockstep_sim_tick_by_tick() -> None:
     try:
         conductor = Conductor(node, lambda: [], tick_s=0.01)
         spinner.start()
-        assert wait_until(conductor.connected, 30.0)
+        assert wait_until(conductor.connected, scaled(30.0))
         ticks: list[float] = []
         assert conductor.step_to(0.1, on_tick=ticks.append) == pytest.approx(0.1)
         assert ticks == pytest.approx([0.01 * i for i in range(1, 11)])
-        assert wait_until(lambda: len(clocks) >= 10, 30.0)
+        assert wait_until(lambda: len(clocks) >= 10, scaled(30.0))
         assert clocks[:10] == pytest.approx(ticks) and sim.ticks == 10
         assert conductor.quiescence.waits == 10 and conductor.late_ticks == 0
     finally:
         stop.set()
-        spinner.join(timeout=5.0)
+        spinner.join(timeout=scaled(5.0))
         executor.remove_node(node)
         executor.remove_node(sim)
         node.destroy_node()

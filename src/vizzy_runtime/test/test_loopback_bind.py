@@ -19,6 +19,7 @@ import sys
 import pytest
 
 from vizzy_runtime import loopback
+from vizzy_runtime.testing import scaled
 
 if loopback.shim_path() is None:
     pytest.skip('the loopback-bind shim is not built (reinstall vizzy_runtime)',
@@ -51,7 +52,7 @@ def _isolation() -> str | None:
     """Why a private network namespace cannot be made here, or None."""
     if not (shutil.which('unshare') and shutil.which('ip')):
         return 'unshare or ip (util-linux, iproute2) missing'
-    proc = subprocess.run([*ISOLATED, 'true'], capture_output=True, text=True, timeout=30)
+    proc = subprocess.run([*ISOLATED, 'true'], capture_output=True, text=True, timeout=scaled(30))
     return None if proc.returncode == 0 else f'no network namespace: {proc.stderr.strip()}'
 
 
@@ -63,7 +64,7 @@ def _run(code: str, *args: str, isolated: bool = False, **env: str) -> str:
     base = {k: v for k, v in os.environ.items() if k not in ('LD_PRELOAD', loopback.EXEC_MARK)}
     prefix = ISOLATED if isolated else []
     proc = subprocess.run([*prefix, sys.executable, '-c', code, *args], env={**base, **env},
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=scaled(120))
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
@@ -77,6 +78,7 @@ def _ipv6() -> bool:
         return False
 
 
+@pytest.mark.slow
 def test_the_shim_binds_loopback_instead_of_the_wildcard() -> None:
     shim = str(loopback.shim_path())
     assert _run(BIND, ANY_V4, LD_PRELOAD=shim) == '127.0.0.1'
@@ -85,6 +87,7 @@ def test_the_shim_binds_loopback_instead_of_the_wildcard() -> None:
         assert _run(BIND, '::', LD_PRELOAD=shim) == '::1'
 
 
+@pytest.mark.slow
 @needs_isolation
 def test_without_the_shim_or_with_the_lan_opt_in_the_wildcard_is_bound() -> None:
     shim = str(loopback.shim_path())
@@ -92,12 +95,14 @@ def test_without_the_shim_or_with_the_lan_opt_in_the_wildcard_is_bound() -> None
     assert _run(BIND, ANY_V4, isolated=True, LD_PRELOAD=shim, VIZZY_DDS_LAN='1') == ANY_V4
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
 def test_the_shim_keeps_a_cyclone_participant_on_loopback() -> None:
     shim = str(loopback.shim_path())
     assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled', LD_PRELOAD=shim) == ['127.0.0.1']
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
 def test_a_library_user_s_participant_is_on_loopback_without_the_preload() -> None:
     """pytest, a user's script: nothing re-executed them with LD_PRELOAD, so dds.participant()
@@ -105,6 +110,7 @@ def test_a_library_user_s_participant_is_on_loopback_without_the_preload() -> No
     assert _run(PARTICIPANT, VIZZY_RUNTIME='bundled') == ['127.0.0.1']
 
 
+@pytest.mark.slow
 @needs_isolation
 @pytest.mark.skipif(not loopback.bundled_runtime(), reason='the shim is for the bundled runtime')
 def test_cyclone_alone_binds_the_wildcard_and_the_patch_touches_only_cyclone() -> None:
@@ -116,6 +122,7 @@ def test_cyclone_alone_binds_the_wildcard_and_the_patch_touches_only_cyclone() -
     assert _run(own, isolated=True, VIZZY_RUNTIME='bundled') == [ANY_V4, '127.0.0.1']
 
 
+@pytest.mark.slow
 def test_an_entry_point_reexecutes_itself_once_with_the_shim() -> None:
     code = ('import json, os\nfrom vizzy_runtime.loopback import exec_loopback_bound\n'
             'exec_loopback_bound()\nprint(json.dumps(os.environ.get("LD_PRELOAD")))')

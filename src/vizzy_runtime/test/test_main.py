@@ -17,9 +17,12 @@ import time
 
 import pytest
 
-pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
+from vizzy_runtime.testing import scaled
 
-STARTUP_TIMEOUT = 120.0   # imports alone take tens of seconds on a loaded 2-core machine
+# live: also run on the real rclpy (scripts/test_ros.sh); slow: each test starts a node process
+pytestmark = [pytest.mark.live, pytest.mark.slow]
+
+STARTUP_TIMEOUT = scaled(120.0)   # imports alone take tens of seconds on a loaded 2-core machine
 
 
 def _node(*ros_args: str) -> subprocess.Popen[str]:
@@ -85,8 +88,8 @@ def test_repeated_sigint_during_clean_up_exits_cleanly() -> None:
     for gap in (0.05, 0.05, 0.0):     # a terminal's Ctrl-C, launch's SIGINT, one more
         proc.send_signal(signal.SIGINT)
         time.sleep(gap)
-    code = proc.wait(60)
-    rest = ''.join(iter(lambda: lines.get(timeout=10), ''))
+    code = proc.wait(scaled(60))
+    rest = ''.join(iter(lambda: lines.get(timeout=scaled(10)), ''))
     out = ''.join(seen) + rest
     assert code == 0, f'exit {code}: {out[-3000:]}'
     assert 'Traceback' not in out and 'KeyboardInterrupt' not in out, out[-3000:]

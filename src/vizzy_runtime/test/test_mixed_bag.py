@@ -9,10 +9,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from vizzy_runtime import msgs
 from vizzy_runtime.bag import BagReader, bag_info
-from vizzy_runtime.testing import real_rclpy_python, repo_root
+from vizzy_runtime.testing import real_rclpy_python, repo_root, scaled
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import (  # noqa: E402
@@ -23,6 +24,8 @@ from mixed_support import (  # noqa: E402
     stop_all,
     wait_state,
 )
+
+pytestmark = pytest.mark.slow  # real-rclpy processes and a bag played in another
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']   # the bundled runtime's CLI (.venv)
 # what the sim and the gaze controller publish, each recorded and decoded
@@ -47,11 +50,11 @@ def test_bundled_bag_record_records_a_real_rclpy_graph(tmp_path):
     try:
         # the graph is up (the sim publishes) before recording starts
         flow = Flow(['/clock', '/gaze/state', '/vizzy/left/image_raw'])
-        up = wait_state(lambda: flow.all_heard() or not real.alive(), 120)
+        up = wait_state(lambda: flow.all_heard() or not real.alive(), scaled(120))
         assert up and real.alive(), f'the real graph did not come up: {flow.counts}\n{real.log()}'
         rec = subprocess.run([*VIZZY, 'bag', 'record', '-a', '-o', str(bag), '-d', '10',
                               '--exclude-topics', '/vizzy/rgbd/points'],
-                             capture_output=True, text=True, timeout=120)
+                             capture_output=True, text=True, timeout=scaled(120))
         assert rec.returncode == 0, rec.stderr[-3000:]
         flow.close()
     finally:
@@ -105,18 +108,18 @@ def test_real_rclpy_foveation_consumes_bundled_bag_play(tmp_path):
             return any(not ep.is_writer and ep.topic == '/vizzy/left/image_raw'
                        for ep in flow.disc.endpoints())
         assert wait_state(lambda: subscribed() or not real.alive(),
-                          120) and real.alive(), real.log()
+                          scaled(120)) and real.alive(), real.log()
         player = subprocess.Popen([*VIZZY, 'bag', 'play', str(bag), '-l'],
                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         flowing = wait_state(
-            lambda: flow.all_heard() or not real.alive() or player.poll() is not None, 120)
+            lambda: flow.all_heard() or not real.alive() or player.poll() is not None, scaled(120))
         heard, alive, played = flow.counts['/foveation/image'], real.alive(), player.poll()
     finally:
         def stop_player() -> None:
             if player is not None and player.poll() is None:
                 player.send_signal(signal.SIGINT)
                 try:
-                    player.wait(20)
+                    player.wait(scaled(20))
                 except subprocess.TimeoutExpired:
                     player.kill()
         codes: list = []

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from vizzy_runtime.testing import real_rclpy_python
+from vizzy_runtime.testing import real_rclpy_python, scaled
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import (  # noqa: E402
@@ -27,6 +27,8 @@ from mixed_support import (  # noqa: E402
     stop_all,
     wait_state,
 )
+
+pytestmark = pytest.mark.slow  # real-rclpy nodes in processes of their own
 
 VIZZY = [sys.executable, '-m', 'vizzy_runtime.cli']   # the bundled runtime's CLI (.venv)
 
@@ -67,7 +69,8 @@ def real_nodes(tmp_path_factory):
     talker = RealProcess(['-c', TALKER], tmp / 'talker.log')
     try:
         flow = Flow(['/gaze/state', '/mixed/chatter'])
-        up = wait_state(lambda: flow.all_heard() or not (gaze.alive() and talker.alive()), 120)
+        up = wait_state(lambda: flow.all_heard() or not (gaze.alive() and talker.alive()),
+                        scaled(120))
         assert up and gaze.alive() and talker.alive(), (
             f'real nodes not up: {flow.counts}\n{gaze.log()}\n{talker.log()}')
         flow.close()
@@ -76,7 +79,7 @@ def real_nodes(tmp_path_factory):
         stop_all(gaze.stop, talker.stop)
 
 
-def vizzy(*args: str, timeout: float = 60, code: int = 0) -> str:
+def vizzy(*args: str, timeout: float = scaled(60), code: int = 0) -> str:
     proc = subprocess.run([*VIZZY, *args], capture_output=True, text=True, timeout=timeout)
     assert proc.returncode == code, (f'vizzy {" ".join(args)}: exit {proc.returncode}\n'
                                      f'{proc.stderr[-2000:]}')
@@ -141,7 +144,7 @@ def test_param_client_queues_concurrent_calls_to_a_fast_dds_service(real_nodes, 
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     client = AsyncParameterClient(node, '/gaze_controller')
-    assert client.wait_for_services(30)
+    assert client.wait_for_services(scaled(30))
     asked = [['pursuit_gain'], ['neck_share', 'pursuit_gain'], ['nope'],
              ['pursuit_gain', 'neck_share']] * 3
     futures = [client.get_parameters(names) for names in asked]  # all in flight at once

@@ -14,7 +14,7 @@ import pytest
 
 from vizzy_runtime.launcher import Launcher, load_graph
 from vizzy_runtime.rclpy_compat import graph
-from vizzy_runtime.testing import real_rclpy_python
+from vizzy_runtime.testing import real_rclpy_python, scaled
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import (  # noqa: E402
@@ -26,6 +26,8 @@ from mixed_support import (  # noqa: E402
     stop_all,
     wait_state,
 )
+
+pytestmark = pytest.mark.slow  # the whole graph, across vendors
 
 HEAD = ('sim', 'gaze_controller')
 PERCEPTION = ('foveation', 'stereo_ses', 'cylinder_detector', 'mot_planner')
@@ -43,7 +45,7 @@ OUTPUTS = {
 # a DDS GUID starts with its vendor's id: who really runs each node
 VENDORS = {b'\x01\x0f': 'real rclpy (Fast DDS)', b'\x01\x10': 'bundled (Cyclone DDS)'}
 # waits on state, never on time: generous for a loaded 2-core machine starting 6 nodes
-DEADLINE_S = 150.0
+DEADLINE_S = scaled(150.0)
 
 
 @pytest.mark.parametrize('real_side', ['head', 'perception'])

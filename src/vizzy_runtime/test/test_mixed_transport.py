@@ -20,13 +20,16 @@ from pathlib import Path
 
 import pytest
 
-from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python
+from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python, scaled
+
+pytestmark = pytest.mark.slow  # starts processes or a whole graph, or takes more than ~5 s
 
 PEER = Path(__file__).with_name('image_peer.py')
 FRAMES = 60
 RATE_HZ = 15.0
-START_S = 90.0   # process start and discovery, on a loaded 2-core machine
-DRAIN_S = 30.0   # after the last image was sent, for every subscriber to have read everything
+START_S = scaled(90.0)   # process start and discovery, on a loaded 2-core machine
+# after the last image was sent, for every subscriber to have read everything
+DRAIN_S = scaled(30.0)
 QUIET_S = 5.0    # ... or to have read nothing more for this long
 
 
@@ -81,7 +84,7 @@ class Peer:
     def stop(self) -> None:
         try:
             self.send('stop')
-            self.proc.wait(timeout=30)
+            self.proc.wait(timeout=scaled(30))
         except (OSError, subprocess.TimeoutExpired):
             pass
         if self.proc.poll() is None:

@@ -23,9 +23,9 @@ from vizzy_runtime.ros import (
     message,
     qos_profile_sensor_data,
 )
-from vizzy_runtime.testing import STOP_GRACE_S, publish_until, wait_until
+from vizzy_runtime.testing import STOP_GRACE_S, no_renderer, publish_until, scaled, wait_until
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.slow]
 
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
@@ -81,7 +81,7 @@ def _factory(name: str) -> tuple[Callable[..., Any], list[Any]]:
         try:
             render.select_backend()
         except render.RendererUnavailable as exc:
-            pytest.skip(str(exc))
+            no_renderer(str(exc))
         return SimNode, [Parameter(k, value=v) for k, v in SMALL_SIM.items()]
     if name == 'gaze_controller':
         from vizzy_gaze.gaze_controller_node import GazeControllerNode
@@ -191,7 +191,7 @@ def test_two_heads_in_two_namespaces_do_not_cross_talk(context, tmp_path) -> Non
         # gaze states flow only if each gaze controller (use_sim_time) follows its own head's clock
         up = wait_until(lambda: all(probe.widths[ns] and ns in probe.states
                                     and not math.isnan(probe.neck_pan(ns)) for ns in HEADS),
-                        90, spin=executor)
+                        scaled(90), spin=executor)
         running = {ns: launcher.poll() for ns, launcher in launchers.items()}
         report = {ns: logs[ns].getvalue()[-2500:] for ns in HEADS}
         assert up, f'not flowing: widths {probe.widths}, states {set(probe.states)}; {report}'
@@ -200,16 +200,17 @@ def test_two_heads_in_two_namespaces_do_not_cross_talk(context, tmp_path) -> Non
         # each head's foveated images come from its own simulator's frames
         assert probe.widths == {ns: {width} for ns, width in HEADS.items()}, probe.widths
         # a gaze command to head1 moves head1 only
-        assert wait_until(lambda: probe.gaze.get_subscription_count() > 0, 30, spin=executor)
+        assert wait_until(lambda: probe.gaze.get_subscription_count() > 0, scaled(30),
+                          spin=executor)
         head2_before = probe.neck_pan('/head2')
         command = GazeCommand(mode=GazeCommand.MODE_JOINT_TARGETS, joint_names=['neck_pan_joint'],
                               joint_positions=[0.4], motion=GazeCommand.MOTION_SACCADE,
                               source='cross_talk_probe', priority=100, hold_time=0.0)
         assert publish_until(lambda: probe.gaze.publish(command),
-                             lambda: abs(probe.neck_pan('/head1') - 0.4) < 0.02, executor, 30,
-                             period=0.5), f'head1 neck pan {probe.neck_pan("/head1")}'
-        assert wait_until(lambda: probe.states['/head1'].active_source == 'cross_talk_probe', 5,
-                          spin=executor)
+                             lambda: abs(probe.neck_pan('/head1') - 0.4) < 0.02, executor,
+                             scaled(30), period=0.5), f'head1 neck pan {probe.neck_pan("/head1")}'
+        assert wait_until(lambda: probe.states['/head1'].active_source == 'cross_talk_probe',
+                          scaled(5), spin=executor)
         wait_until(lambda: False, 0.5, spin=executor)
         assert abs(probe.neck_pan('/head2') - head2_before) < 1e-3, probe.neck_pan('/head2')
         assert probe.states['/head2'].active_source != 'cross_talk_probe'

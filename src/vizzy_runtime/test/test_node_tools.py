@@ -19,7 +19,7 @@ from vizzy_runtime.node_tools import (
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.rclpy_compat.parameter import Parameter, SetParametersResult
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
 
 PARAMETERS = (
     Param('rate_hz', 10.0, 'Rate [Hz], in (0, 100].', '(0, 100]'),
@@ -274,9 +274,9 @@ def test_guarded_timer_keeps_firing_and_can_be_replaced(context, capsys):
             raise ZeroDivisionError('tick')
 
         timer = node.create_timer(0.01, guarded(node, 'tick failed', tick))
-        assert wait_until(lambda: len(ticks) >= 3, 5.0, spin=executor)
+        assert wait_until(lambda: len(ticks) >= 3, scaled(5.0), spin=executor)
         timer = replace_timer(node, timer, 0.01, lambda: ticks.append(2))
-        assert wait_until(lambda: 2 in ticks, 5.0, spin=executor)
+        assert wait_until(lambda: 2 in ticks, scaled(5.0), spin=executor)
         assert len(node.timers) == timers_before + 1  # the old one is gone
         errors = [line for line in capsys.readouterr().err.splitlines() if '[ERROR]' in line]
         assert errors and all(e.endswith('tick failed: ZeroDivisionError: tick') for e in errors)
@@ -346,17 +346,17 @@ def test_latest_worker_runs_the_newest_item_and_drops_the_rest() -> None:
     gate, seen = threading.Event(), []
 
     def handle(item):
-        gate.wait(5.0)              # busy on the first item until the test opens the gate
+        gate.wait(scaled(5.0))              # busy on the first item until the test opens the gate
         seen.append(item)
 
     worker = LatestWorker('test_worker', handle)
     try:
         assert not worker.put(1)
-        assert wait_until(lambda: not worker._waiting, 5.0)     # 1 taken, the thread is busy
+        assert wait_until(lambda: not worker._waiting, scaled(5.0))   # 1 taken, the thread is busy
         assert not worker.put(2)
         assert worker.put(3) and worker.put(4)                  # 2 and 3 replaced while waiting
         gate.set()
-        assert wait_until(lambda: seen == [1, 4], 5.0)
+        assert wait_until(lambda: seen == [1, 4], scaled(5.0))
     finally:
         worker.close()
     assert not worker._thread.is_alive()
@@ -368,9 +368,9 @@ def test_latest_worker_spaces_starts_by_the_period() -> None:
                           min_period_s=lambda: 0.2)
     try:
         worker.put(1)
-        assert wait_until(lambda: len(starts) == 1, 5.0)
+        assert wait_until(lambda: len(starts) == 1, scaled(5.0))
         worker.put(2)
-        assert wait_until(lambda: len(starts) == 2, 5.0)
+        assert wait_until(lambda: len(starts) == 2, scaled(5.0))
     finally:
         worker.close()
     assert starts[1] - starts[0] >= 0.2 - 1e-3

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from vizzy_runtime.testing import scaled
+
 REPO = Path(__file__).resolve().parents[3]
 PACKAGE_DIRS = sorted(p.parent for p in REPO.glob('src/*/package.xml')) + [REPO / 'msgs']
 APT_PIP_REQUIREMENTS = REPO / 'requirements-ros-apt.txt'
@@ -258,6 +260,7 @@ def test_no_node_package_imports_another() -> None:
     assert not problems, '; '.join(problems)
 
 
+@pytest.mark.slow
 def test_nodes_import_without_the_simulator() -> None:
     # A robot without MuJoCo and vizzy_sim_bridge runs every perception node and the gaze
     # controller; a training program there ends with one line naming what to install.
@@ -265,14 +268,15 @@ def test_nodes_import_without_the_simulator() -> None:
     modules = ['vizzy_gaze.gaze_controller_node', 'foveation_node.node', 'stereo_ses_node.node',
                'cylinder_detector_node.node', 'mot_planner_node.node', 'vizzy_object_map.node']
     code = block + ''.join(f'import {m}; ' for m in modules)
-    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=300)
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=scaled(300))
     assert run.returncode == 0, run.stderr[-2000:]
     for program, module in [('train_foveation_classifier', 'foveation_node'),
                             ('train_cylinder_classifier', 'cylinder_detector_node')]:
         code = (block + f'from {module}.training.train_classifier import main; '
                 'sys.exit(main(["--epochs", "1"]))')
         run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                             timeout=300)
+                             timeout=scaled(300))
         lines = run.stderr.strip().splitlines()
         assert run.returncode == 2 and len(lines) == 1, run.stderr[-2000:]
         assert lines[0].startswith(f'{program}: needs the simulated head') and \

@@ -41,8 +41,9 @@ from vizzy_runtime.rclpy_compat.parameter import (  # noqa: E402
     ParameterDescriptor,
     SetParametersResult,
 )
+from vizzy_runtime.testing import scaled  # noqa: E402
 
-TIMEOUT = 15.0
+TIMEOUT = scaled(15.0)
 ParameterValueIdl = dds.idl_type('rcl_interfaces/msg/ParameterValue')
 ParameterIdl = dds.idl_type('rcl_interfaces/msg/Parameter')
 

@@ -18,8 +18,9 @@ from vizzy_runtime.rclpy_compat.parameter import (
     SetParametersResult,
 )
 from vizzy_runtime.rclpy_compat.parameter_client import AsyncParameterClient
+from vizzy_runtime.testing import scaled
 
-TIMEOUT = 20.0
+TIMEOUT = scaled(20.0)
 
 
 @pytest.fixture

@@ -19,7 +19,7 @@ from vizzy_runtime.ros import (
     SingleThreadedExecutor,
     message,
 )
-from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python, repo_root, wait_until
+from vizzy_runtime.testing import real_rclpy_env, real_rclpy_python, repo_root, scaled, wait_until
 
 ParameterEvent = message('rcl_interfaces/msg/ParameterEvent')
 
@@ -130,7 +130,7 @@ def test_declarations_and_changes_go_out_on_parameter_events(context):
     executor.add_node(listener)
     try:
         assert wait_until(
-            lambda: talker._parameter_event_publisher.get_subscription_count() > 0, 20.0,
+            lambda: talker._parameter_event_publisher.get_subscription_count() > 0, scaled(20.0),
             spin=executor)
         talker.declare_parameter('gain', 2, Param('gain', 2, 'G.', '[0, 10]').descriptor())
         assert talker.set_parameters([Parameter('gain', value=3)])[0].successful
@@ -142,7 +142,8 @@ def test_declarations_and_changes_go_out_on_parameter_events(context):
         def names(field: str) -> list[tuple[str, int]]:
             return [(p.name, p.value.integer_value) for e in ours() for p in getattr(e, field)]
 
-        assert wait_until(lambda: ('gain', 3) in names('changed_parameters'), 20.0, spin=executor)
+        assert wait_until(lambda: ('gain', 3) in names('changed_parameters'), scaled(20.0),
+                          spin=executor)
         assert ('gain', 2) in names('new_parameters')
         assert ('gain', 99) not in names('changed_parameters')   # refused: no event
         assert all(e.stamp.sec > 0 for e in ours())
@@ -154,9 +155,10 @@ def test_declarations_and_changes_go_out_on_parameter_events(context):
 
 def _start_foveation(executable: Path, env: dict[str, str], *args: str) -> Any:
     return subprocess.run([str(executable), '--ros-args', *args], env=env, capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=scaled(120))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('tier', ['bundled', 'ros'])
 def test_a_node_started_with_a_bad_parameter_says_so_in_one_line(tier):
     """`foveation --ros-args -p levels:=abc` (and an out-of-range -p) on each venv's executable:

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from vizzy_runtime.process_exit import exit_code
+from vizzy_runtime.testing import scaled
 
 SRC = str(Path(__file__).resolve().parents[1])
 
@@ -32,7 +33,7 @@ def _run(body: str, tmp_path: Path) -> subprocess.CompletedProcess[str]:
         print('buffered output')   # a pipe: block-buffered, flushed only at exit
     ''') + textwrap.dedent(body))
     return subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=60)
+                          timeout=scaled(60))
 
 
 @pytest.mark.parametrize(('body', 'status'), [
@@ -40,6 +41,7 @@ def _run(body: str, tmp_path: Path) -> subprocess.CompletedProcess[str]:
     ('run_then_exit(lambda: 4)', 4),
     ('def main():\n    raise SystemExit(3)\nrun_then_exit(main)', 3),
 ])
+@pytest.mark.slow
 def test_the_status_threads_atexit_and_output_are_those_of_a_normal_exit(tmp_path, body, status):
     proc = _run(body, tmp_path)
     assert proc.returncode == status, proc.stderr
@@ -48,6 +50,7 @@ def test_the_status_threads_atexit_and_output_are_those_of_a_normal_exit(tmp_pat
     assert (tmp_path / 'atexit').exists()
 
 
+@pytest.mark.slow
 def test_an_uncaught_exception_prints_its_traceback_and_exits_1(tmp_path):
     proc = _run('def main():\n    raise ValueError("bad thing")\nrun_then_exit(main)', tmp_path)
     assert proc.returncode == 1

@@ -14,13 +14,14 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from vizzy_runtime.testing import repo_root
+from vizzy_runtime.testing import repo_root, scaled
 
 
+@pytest.mark.slow
 def test_results_page_is_generated_from_the_results_json() -> None:
     root = repo_root()
     run = subprocess.run([sys.executable, str(root / 'scripts' / 'results_table.py'), '--check'],
-                         capture_output=True, text=True, timeout=120, cwd=root)
+                         capture_output=True, text=True, timeout=scaled(120), cwd=root)
     assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
 
 

@@ -22,7 +22,7 @@ from vizzy_runtime.ros import (
     SingleThreadedExecutor,
     message,
 )
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
 
 pytestmark = pytest.mark.live
 
@@ -53,7 +53,7 @@ def test_a_nodes_warning_reaches_rosout_with_its_level_and_name(context):
         line = sys._getframe().f_lineno + 1
         talker.get_logger().warning(text)
         talker.get_logger().get_child('part').error(text)
-        assert wait_until(lambda: len([r for r in records if r.msg == text]) == 2, 10.0,
+        assert wait_until(lambda: len([r for r in records if r.msg == text]) == 2, scaled(10.0),
                           spin=executor), [r.msg for r in records]
         warning, error = [r for r in records if r.msg == text]
         assert (warning.level, error.level) == (30, 40)
@@ -80,12 +80,12 @@ def test_rosout_is_transient_local_and_enable_rosout_false_is_honoured(context):
     records: list = []
     listener, executor = _listen(context, records)   # a late joiner, like rqt_console
     try:
-        assert wait_until(lambda: any(r.name == talker.get_name() for r in records), 10.0,
+        assert wait_until(lambda: any(r.name == talker.get_name() for r in records), scaled(10.0),
                           spin=executor)
         record = next(r for r in records if r.name == talker.get_name())
         assert (record.msg, record.level) == ('said before anyone listened', 20)
         talker.get_logger().info('a later one')
-        assert wait_until(lambda: any(r.msg == 'a later one' for r in records), 10.0,
+        assert wait_until(lambda: any(r.msg == 'a later one' for r in records), scaled(10.0),
                           spin=executor)
         assert not [r for r in records if r.name == silent.get_name()]
     finally:

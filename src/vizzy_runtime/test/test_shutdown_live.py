@@ -20,7 +20,7 @@ import pytest
 
 from vizzy_runtime.node_tools import LatestWorker, guarded, publish_from_thread
 from vizzy_runtime.ros import ExternalShutdownException, Node, message
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
 
 pytestmark = pytest.mark.live
 
@@ -40,7 +40,7 @@ class GatedWorkerNode(Node):
 
     def work(self, item: int) -> None:
         self.started.set()
-        self.gate.wait(10.0)
+        self.gate.wait(scaled(10.0))
         publish_from_thread(self, self.pub, String(data='late'))
         self.published.append(item)
 
@@ -53,10 +53,10 @@ def test_a_worker_publishing_after_the_context_went_down_ends_quietly(context, c
     node = GatedWorkerNode('shutdown_race_worker', context)
     try:
         node.worker.put(1)
-        assert node.started.wait(10.0)
+        assert node.started.wait(scaled(10.0))
         context.shutdown()          # what the first Ctrl-C does, the worker still busy
         node.gate.set()
-        assert node.worker.close(5.0), 'the worker thread did not end'
+        assert node.worker.close(scaled(5.0)), 'the worker thread did not end'
         assert node.published == []
         err = capfd.readouterr().err
         assert 'worker failed' not in err and 'RCLError' not in err
@@ -84,12 +84,12 @@ def test_destroy_node_waits_for_a_busy_worker_only_so_long(context, capfd):
     node = GatedWorkerNode('shutdown_busy_worker', context, close_timeout=0.3)
     try:
         node.worker.put(1)
-        assert node.started.wait(10.0)
+        assert node.started.wait(scaled(10.0))
         node.destroy_node()         # the handle is still in flight, blocked on the gate
         # destroy_node returned although the handle cannot finish: the wait was bounded
         assert node.worker._thread.is_alive() and node.published == []
         node.gate.set()             # it finishes after destroy_node: its publish is dropped
-        assert wait_until(lambda: not node.worker._thread.is_alive(), 5.0)
+        assert wait_until(lambda: not node.worker._thread.is_alive(), scaled(5.0))
         assert node.published == []
         assert 'worker failed' not in capfd.readouterr().err
     finally:
@@ -143,6 +143,7 @@ def _default_signals() -> None:
         signal.signal(sig, signal.SIG_DFL)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('gap_s', [0.0, 0.1, 0.25])
 def test_two_sigints_end_a_busy_node_cleanly(tmp_path, gap_s):
     script = tmp_path / 'churn.py'
@@ -155,7 +156,7 @@ def test_two_sigints_end_a_busy_node_cleanly(tmp_path, gap_s):
         proc.send_signal(signal.SIGINT)
         time.sleep(gap_s)
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=scaled(30))
     finally:
         if proc.poll() is None:
             proc.kill()

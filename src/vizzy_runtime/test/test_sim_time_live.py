@@ -12,7 +12,7 @@ import time
 import pytest
 
 from vizzy_runtime.ros import Node, Parameter, SingleThreadedExecutor, message
-from vizzy_runtime.testing import publish_until, wait_until
+from vizzy_runtime.testing import publish_until, scaled, wait_until
 
 pytestmark = pytest.mark.live
 
@@ -54,7 +54,7 @@ def test_sim_time_clock_is_zero_and_timers_wait_for_clock(context):
         # the first /clock: the clock jumps to it and the timer fires (once it is due)
         assert publish_until(lambda: clock_pub.publish(_clock(START_NS)),
                              lambda: clock.now().nanoseconds == START_NS, executor)
-        assert wait_until(lambda: len(ticks) >= 1, 5.0, spin=executor)
+        assert wait_until(lambda: len(ticks) >= 1, scaled(5.0), spin=executor)
         assert all(t == START_NS for t in ticks)
 
         # /clock frozen: wall time passes, the timer does not fire
@@ -66,7 +66,7 @@ def test_sim_time_clock_is_zero_and_timers_wait_for_clock(context):
         later = START_NS + PERIOD_NS
         assert publish_until(lambda: clock_pub.publish(_clock(later)),
                              lambda: clock.now().nanoseconds == later, executor)
-        assert wait_until(lambda: len(ticks) == count + 1, 5.0, spin=executor)
+        assert wait_until(lambda: len(ticks) == count + 1, scaled(5.0), spin=executor)
         assert ticks[-1] == later
     finally:
         executor.remove_node(source)

@@ -12,7 +12,7 @@ import pytest
 from vizzy_runtime.rclpy_compat.executors import SingleThreadedExecutor
 from vizzy_runtime.rclpy_compat.node import Node
 from vizzy_runtime.ros import message, qos_profile_latched
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
 from vizzy_runtime.tf import (
     ExtrapolationError,
     FramePoses,
@@ -244,7 +244,8 @@ def test_listener_fills_the_buffer_from_tf_and_latched_tf_static(context) -> Non
     executor.add_node(broadcaster)
     executor.add_node(listener_node)
     try:
-        assert wait_until(lambda: buffer.can_transform('head', 'camera'), 10.0, spin=executor)
+        assert wait_until(lambda: buffer.can_transform('head', 'camera'), scaled(10.0),
+                          spin=executor)
         np.testing.assert_allclose(buffer.lookup_transform('head', 'camera'), mount, atol=1e-12)
 
         def neck(angle: float) -> Any:
@@ -255,9 +256,9 @@ def test_listener_fills_the_buffer_from_tf_and_latched_tf_static(context) -> Non
             return stamped('base_link', 'head', pose), pose
 
         msg, pose = neck(0.3)
-        assert wait_until(lambda: tf_pub.get_subscription_count() > 0, 10.0, spin=executor)
+        assert wait_until(lambda: tf_pub.get_subscription_count() > 0, scaled(10.0), spin=executor)
         tf_pub.publish(TFMessage(transforms=[msg]))
-        assert wait_until(lambda: buffer.can_transform('base_link', 'camera'), 10.0,
+        assert wait_until(lambda: buffer.can_transform('base_link', 'camera'), scaled(10.0),
                           spin=executor)
         np.testing.assert_allclose(buffer.lookup_transform('base_link', 'camera'), pose @ mount,
                                    atol=1e-12)
@@ -268,7 +269,7 @@ def test_listener_fills_the_buffer_from_tf_and_latched_tf_static(context) -> Non
         msg, pose = neck(-0.2)
         tf_pub.publish(TFMessage(transforms=[msg]))
         assert wait_until(lambda: np.allclose(buffer.lookup_transform('base_link', 'head'), pose,
-                                              atol=1e-12), 10.0, spin=executor)
+                                              atol=1e-12), scaled(10.0), spin=executor)
     finally:
         executor.remove_node(broadcaster)
         executor.remove_node(listener_node)
@@ -360,10 +361,10 @@ def test_a_lookup_waits_up_to_its_timeout_for_the_tf_that_covers_its_stamp() -> 
         buffer.lookup_transform('base_link', 'camera', 10.5, timeout_s=0.05)
     got: list[Any] = []
     waiter = threading.Thread(target=lambda: got.append(buffer.lookup_transform(
-        'base_link', 'camera', 10.5, timeout_s=30.0)))
+        'base_link', 'camera', 10.5, timeout_s=scaled(30.0))))
     waiter.start()
     buffer.set_transform('base_link', 'camera', pan(10.0), 11.0)   # /tf that covers 10.5 s
-    waiter.join(30.0)
+    waiter.join(scaled(30.0))
     assert len(got) == 1 and yaw_deg(got[0]) == pytest.approx(5.0)
 
 
@@ -385,6 +386,7 @@ def test_history_is_bounded_by_time_and_count() -> None:
     assert buffer.old_samples_ignored == 1 and buffer.stats()['samples'] == kept
 
 
+@pytest.mark.slow
 def test_a_stream_of_new_frame_names_keeps_the_frames_bounded() -> None:
     """issue 28 item 3: 321,500 new names on /tf in 60 s grew each node by 27-150 MB and made a
     lookup 138 ms. Here 60,000 names over 60 s of the buffer's clock, while the head's /tf goes

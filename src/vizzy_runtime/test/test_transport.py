@@ -19,7 +19,7 @@ from vizzy_runtime.rclpy_compat.qos import (
     ReliabilityPolicy,
     qos_profile_sensor_data,
 )
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import scaled, wait_until
 
 Image = msgs.get_message('sensor_msgs/msg/Image')
 String = msgs.get_message('std_msgs/msg/String')
@@ -34,9 +34,10 @@ def relay():
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     yield proc
     proc.terminate()
-    proc.wait(timeout=10)
+    proc.wait(timeout=scaled(10))
 
 
+@pytest.mark.slow
 def test_image_round_trip_across_processes(context, relay):
     node = Node('tester', context=context)
     received = []
@@ -46,7 +47,7 @@ def test_image_round_trip_across_processes(context, relay):
     ex.add_node(node)
     # the relay has a reader on /relay_in and a writer on /relay_out: wait for both matches
     assert wait_until(lambda: pub.get_subscription_count() == 1
-                      and node.subscriptions[0].get_publisher_count() == 1, 20)
+                      and node.subscriptions[0].get_publisher_count() == 1, scaled(20))
     rng = np.random.default_rng(0)
     frames = [rng.integers(0, 255, (480, 640, 3), dtype=np.uint8) for _ in range(3)]
     for i, frame in enumerate(frames):
@@ -54,7 +55,7 @@ def test_image_round_trip_across_processes(context, relay):
         msg.header.frame_id = 'left_camera_optical_frame'
         msg.header.stamp.sec = i
         pub.publish(msg)
-    assert wait_until(lambda: len(received) == 3, 10, spin=ex)
+    assert wait_until(lambda: len(received) == 3, scaled(10), spin=ex)
     for i, (frame, msg) in enumerate(zip(frames, received, strict=True)):
         assert msg.header.stamp.sec == i and msg.header.frame_id == 'left_camera_optical_frame'
         np.testing.assert_array_equal(image_to_numpy(msg), frame)
@@ -84,7 +85,7 @@ def test_transient_local_late_joiner_gets_last_sample(context):
     node.create_subscription(String, '/latched', lambda m: got.append(m.data), latched)
     ex = SingleThreadedExecutor(context=context)
     ex.add_node(node)
-    assert wait_until(lambda: got == ['static'], 10, spin=ex)
+    assert wait_until(lambda: got == ['static'], scaled(10), spin=ex)
 
 
 def test_remapping_and_namespaces(context):
@@ -114,7 +115,7 @@ def test_malformed_sample_is_logged_and_node_keeps_running(context, capfd):
     writer.write(bad.replace(b'ab\x00', b'\xff\xfe\x00'))
     good = Image(height=1, width=1, encoding='mono8', step=1, data=np.array([7], np.uint8))
     writer.write(msgs.serialize(good))
-    assert wait_until(lambda: len(got) == 1, 10, spin=ex)
+    assert wait_until(lambda: len(got) == 1, scaled(10), spin=ex)
     assert got[0].data[0] == 7
     assert 'dropped a malformed sensor_msgs/msg/Image' in capfd.readouterr().err
 
@@ -134,7 +135,7 @@ def test_callback_exception_is_logged_not_fatal(context, capfd):
     assert wait_until(lambda: sub.get_publisher_count() == 1)
     pub.publish(String(data='a'))
     pub.publish(String(data='b'))
-    assert wait_until(lambda: calls == ['a', 'b'], 10, spin=ex)
+    assert wait_until(lambda: calls == ['a', 'b'], scaled(10), spin=ex)
     assert 'RuntimeError: boom' in capfd.readouterr().err
 
 
@@ -162,7 +163,8 @@ def test_timer_and_sim_time(context):
         msg.clock.sec, msg.clock.nanosec = divmod(t * 100_000_000, 1_000_000_000)
         clock_pub.publish(msg)
         want = t * 100_000_000
-        assert wait_until(lambda want=want: node.get_clock().now().nanoseconds == want, 5, spin=ex)
+        assert wait_until(lambda want=want: node.get_clock().now().nanoseconds == want, scaled(5),
+                          spin=ex)
         ex.spin_once(0.0)   # the clock moves in the listener thread; the executor fires timers
     ex.spin_once(0.05)
     # the node's clock follows /clock and its timer fires on sim time: 0.5 s period over 3 s
@@ -179,13 +181,14 @@ def test_peer_with_another_type_on_our_topic_is_reported(context, capfd):
     ex.add_node(node)
     seen = []
     assert wait_until(lambda: seen.append(capfd.readouterr().err)
-                      or any('/mixed' in e for e in seen), 10, spin=ex)
+                      or any('/mixed' in e for e in seen), scaled(10), spin=ex)
     line = next(e for e in seen if '/mixed' in e)
     assert ('a peer publishes it as std_msgs/msg/String, this node uses sensor_msgs/msg/Image'
             in line)
     assert writer.matched_count() == 0
 
 
+@pytest.mark.slow
 def test_sigint_stops_spin_between_callbacks(tmp_path):
     """Ctrl-C never lands inside a callback: spin returns, the node is destroyed, exit code 0."""
     script = tmp_path / 'slow_node.py'
@@ -209,6 +212,6 @@ def test_sigint_stops_spin_between_callbacks(tmp_path):
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == 'tick'
     proc.send_signal(signal.SIGINT)
-    out, _ = proc.communicate(timeout=30)
+    out, _ = proc.communicate(timeout=scaled(30))
     assert proc.returncode == 0
     assert out.split() == ['tock', 'destroyed']

@@ -23,7 +23,9 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mixed_support import graph_subset  # noqa: E402
 
-from vizzy_runtime.testing import STOP_GRACE_S  # noqa: E402
+from vizzy_runtime.testing import STOP_GRACE_S, scaled  # noqa: E402
+
+pytestmark = pytest.mark.slow  # a whole graph across two network namespaces
 
 PROBE = r'''
 import json, sys, time
@@ -47,7 +49,7 @@ HOST_ADDRESSES = ('192.0.2.1/24', '192.0.2.2/24')
 
 def _ip(*args: str) -> str:
     return subprocess.run(['ip', *args], check=True, capture_output=True, text=True,
-                          timeout=30).stdout
+                          timeout=scaled(30)).stdout
 
 
 def _confined(host: str, dev: str) -> bool:
@@ -118,10 +120,11 @@ def test_the_graph_spans_two_hosts_with_the_lan_opt_in(two_hosts, tmp_path):
     b = _in(host_b, [*launch, str(perception)], lan=True, stdout=logs['b'],
             stderr=subprocess.STDOUT)
     try:
-        seen = _in(host_b, ['-c', PROBE, '120'], lan=True, stdout=subprocess.PIPE, text=True)
-        counts = json.loads(seen.communicate(timeout=180)[0])
+        seen = _in(host_b, ['-c', PROBE, str(scaled(120))], lan=True, stdout=subprocess.PIPE,
+                   text=True)
+        counts = json.loads(seen.communicate(timeout=scaled(180))[0])
         local = _in(host_b, ['-c', PROBE, '8'], lan=False, stdout=subprocess.PIPE, text=True)
-        local_counts = json.loads(local.communicate(timeout=60)[0])
+        local_counts = json.loads(local.communicate(timeout=scaled(60))[0])
     finally:
         _stop(a)
         _stop(b)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from vizzy_runtime.ros import Context, SingleThreadedExecutor
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import no_renderer, wait_until
 from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.sim_node import SimNode
 
@@ -22,7 +22,7 @@ def running():
     try:
         render_mod.select_backend()
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
     ctx = Context()
     ctx.init(['test'])
     sim = SimNode(context=ctx, parameter_overrides=OVERRIDES)

@@ -14,6 +14,7 @@ from vizzy_runtime.ros import (
     qos_profile_latched,
     qos_profile_sensor_data,
 )
+from vizzy_runtime.testing import scaled
 
 CameraInfo = message('sensor_msgs/msg/CameraInfo')
 CompressedImage = message('sensor_msgs/msg/CompressedImage')
@@ -25,7 +26,7 @@ TFMessage = message('tf2_msgs/msg/TFMessage')
 Clock = message('rosgraph_msgs/msg/Clock')
 String = message('std_msgs/msg/String')
 
-TIMEOUT = 30.0
+TIMEOUT = scaled(30.0)
 W, H = 160, 120
 OVERRIDES = [Parameter('width', value=W), Parameter('height', value=H),
              Parameter('rgbd_width', value=W), Parameter('rgbd_height', value=H),

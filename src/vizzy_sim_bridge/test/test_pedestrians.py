@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from vizzy_runtime.testing import no_renderer
 from vizzy_sim_bridge.core.pedestrians import PedestrianCrowd, gait_angles, preview_scene_xml
 
 AREA = ((1.5, 6.0), (-2.5, 2.5))
@@ -175,7 +176,7 @@ class OffscreenCamera:
             except Exception as err:  # noqa: BLE001 - ImportError, OSError, GL errors
                 errors.append(f'{backend}: {type(err).__name__}: {err}')
         else:
-            pytest.skip('no offscreen OpenGL (install libegl1 or libosmesa6): ' + '; '.join(errors))
+            no_renderer('install libegl1 or libosmesa6: ' + '; '.join(errors))
         self.model, self.width, self.height = model, width, height
         self.context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)

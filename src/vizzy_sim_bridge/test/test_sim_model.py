@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from vizzy_runtime.testing import scaled, wait_until
 from vizzy_sim_bridge.core.model import HeadSimulation, build_mjcf
 from vizzy_sim_bridge.core.scenes import Scene
 from vizzy_vision.kinematics import (
@@ -148,11 +149,7 @@ def test_initial_posture_and_real_time_thread() -> None:
     assert sim.sample().position[3] == pytest.approx(JOINT_LIMITS['l_eye_joint'][1])
     sim.start()
     try:
-        deadline = 200
-        while sim.steps < 20 and deadline:
-            import time
-            time.sleep(0.01)
-            deadline -= 1
-        assert sim.steps >= 20 and sim.time > 0.0
+        assert wait_until(lambda: sim.steps >= 20, scaled(2.0))
+        assert sim.time > 0.0
     finally:
         sim.stop()

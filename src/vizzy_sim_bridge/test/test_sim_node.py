@@ -22,7 +22,7 @@ from vizzy_runtime.ros import (
     Parameter,
     SingleThreadedExecutor,
 )
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import no_renderer, wait_until
 from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.core.urdf import head_urdf
 from vizzy_sim_bridge.sim_node import SimNode, box_corners, image_box
@@ -196,7 +196,7 @@ def test_lockstep_advances_only_as_asked_and_keeps_each_output_on_its_schedule()
     try:
         render_mod.select_backend()
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
     ctx = Context()
     ctx.init(['test'])
     # in a namespace of its own: the module's real-time sim may still run in this domain

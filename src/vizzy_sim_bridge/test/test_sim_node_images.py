@@ -26,7 +26,7 @@ from vizzy_runtime.ros import (
     SingleThreadedExecutor,
     qos_profile_sensor_data,
 )
-from vizzy_runtime.testing import wait_until
+from vizzy_runtime.testing import no_renderer, wait_until
 from vizzy_sim_bridge.camera_calibration import Calibration, to_yaml
 from vizzy_sim_bridge.compressed import encode_jpeg
 from vizzy_sim_bridge.core import render as render_mod
@@ -156,7 +156,7 @@ def test_camera_info_url_replaces_the_computed_calibration(tmp_path, capfd) -> N
     try:
         render_mod.select_backend()
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
     left = Calibration('vizzy_left', W, H, (200.0, 0.0, 81.0, 0.0, 201.0, 59.0, 0.0, 0.0, 1.0),
                        'plumb_bob', (-0.1, 0.02, 0.001, -0.002, 0.0),
                        (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),

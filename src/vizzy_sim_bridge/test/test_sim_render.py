@@ -7,6 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from vizzy_runtime.testing import no_renderer
 from vizzy_sim_bridge.core import render as render_mod
 from vizzy_sim_bridge.core.model import CameraSpec, HeadSimulation
 from vizzy_sim_bridge.core.rgbd import DepthProjector
@@ -20,7 +21,7 @@ def backend() -> str:
     try:
         return render_mod.select_backend()
     except render_mod.RendererUnavailable as exc:
-        pytest.skip(str(exc))
+        no_renderer(str(exc))
 
 
 def test_a_missing_renderer_names_the_debian_packages(monkeypatch) -> None:
