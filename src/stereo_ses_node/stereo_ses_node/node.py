@@ -412,7 +412,8 @@ class StereoSesNode(Node):
         with self._lock:
             refused = list(self._policy.refused)
             inhibited = self._policy.inhibited_directions(now)
-        chosen = next_fixation(ses, p, refused, inhibited)
+            nearer_than = self._policy.nearest_fixated
+        chosen = next_fixation(ses, p, refused, inhibited, nearer_than)
         if chosen is None:
             self._warn_throttled('decision', 'no reachable cell above min_z_m: no fixation')
             return
@@ -420,8 +421,7 @@ class StereoSesNode(Node):
         cmd = gaze_command(point, p, self.get_clock().now().to_msg())
         publish_from_thread(self, self._gaze_pub, cmd)
         with self._lock:
-            self._policy.commanded(now, decision.cell, int(ses.n_obs[decision.cell]),
-                                   ses.directions[decision.cell], p['inhibition_of_return_s'])
+            self._policy.fixating(now, decision.cell, ses, point, p)
         self.gaze_commands += 1
         self.last_decision = decision
         self.get_logger().debug(f'fixation: cell {decision.cell} at {np.round(point, 3)} '

@@ -89,6 +89,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param('min_observations', 1, 'A cell observed in fewer fused frames than this is scored as '
           'a never-observed one (its prior) when choosing the next fixation, in [1, 1000].',
           '[1, 1000]'),
+    Param('search_nearest', False, 'Search for the nearest object: once an observed point has '
+          'been fixated, only observed cells nearer than the nearest such point compete with '
+          'unobserved space (false: every cell, the UCB of section 3.3.4 alone).'),
     Param('fixation_cluster_m', 0.0, 'An observed cell is fixated at the mean of the observed '
           'cell means within this distance [m] of its own (the middle of the object it lies '
           'on; 0: at its own mean), in [0, 1].', '[0, 1]'),

@@ -114,3 +114,27 @@ def test_a_cell_seen_fewer_than_min_observations_times_is_scored_by_its_prior() 
     assert greedy is not None and lone[greedy[0].cell]
     robust = next_fixation(ses, dict(p, min_observations=3), [])
     assert robust is not None and surface[robust[0].cell]
+
+
+def test_search_nearest_looks_again_only_where_it_can_improve() -> None:
+    """search_nearest: after fixating an object 0.8 m away, a surface 0.9 m away (a stand, say)
+    no longer beats unobserved space, which is explored instead; a surface seen nearer than
+    0.8 m is fixated next."""
+    ses = SensoryEgoSphere(6000, seed=5, init_distance=1.0, init_sigma=0.001)
+    can = observe(ses, np.array([1.0, 0.0, -0.2]), 0.8)
+    stand = observe(ses, np.array([1.0, 0.0, -0.6]), 0.9)
+    p = dict(DEFAULTS, ucb_alpha=1.0, min_z_m=-10.0, inhibition_of_return_deg=6.0,
+             search_nearest=True)
+    policy = FixationPolicy('stereo_ses')
+    first = next_fixation(ses, p, [], policy.inhibited_directions(0.0), policy.nearest_fixated)
+    assert first is not None and can[first[0].cell]
+    policy.fixating(0.0, first[0].cell, ses, first[1], p)
+    assert math.isclose(policy.nearest_fixated, 0.8, rel_tol=1e-6)
+    args = ([], policy.inhibited_directions(1.0))
+    plain = next_fixation(ses, dict(p, search_nearest=False), *args, policy.nearest_fixated)
+    assert plain is not None and stand[plain[0].cell]             # the UCB alone: the stand
+    search = next_fixation(ses, p, *args, policy.nearest_fixated)
+    assert search is not None and ses.n_frames[search[0].cell] == 0   # unobserved space
+    target = observe(ses, np.array([0.4, 1.0, 0.0]), 0.55)
+    found = next_fixation(ses, p, *args, policy.nearest_fixated)
+    assert found is not None and target[found[0].cell]

@@ -36,6 +36,9 @@ class FixationPolicy:
         # inhibition of return: (unit direction in the ego frame, node-clock time it ends) of
         # this node's fixations (next_fixation skips cells near them when its angle is > 0)
         self.inhibited: list[tuple[np.ndarray, float]] = []
+        # the nearest observed point this node fixated [m] (search_nearest: only nearer ones
+        # compete with unobserved space afterwards)
+        self.nearest_fixated = math.inf
 
     def on_gaze_state(self, saccade: bool, active_source: str, stamp: float) -> None:
         """A GazeState: in_saccade, its active_source, its stamp [s]."""
@@ -66,6 +69,7 @@ class FixationPolicy:
         self.refused.clear()
         self.fixated = None
         self.inhibited.clear()
+        self.nearest_fixated = math.inf
 
     def inhibited_directions(self, now: float) -> np.ndarray:
         """(K, 3) unit directions still inhibited at node-clock time now (expired dropped)."""
@@ -91,6 +95,15 @@ class FixationPolicy:
         return (not self.in_saccade and now >= self.awaiting_saccade_until
                 and self.frames_since_settle >= frames_per_fixation
                 and now - self.last_command >= period_s)
+
+    def fixating(self, now: float, cell: int, ses: SensoryEgoSphere, point: np.ndarray,
+                 p: Mapping[str, Any]) -> None:
+        """A command to fixate point (ego frame), chosen for cell of ses under the node's
+        parameters p, went out at now: commanded(), and the nearest observed point fixated."""
+        self.commanded(now, cell, int(ses.n_obs[cell]), ses.directions[cell],
+                       float(p['inhibition_of_return_s']))
+        if ses.n_frames[cell] >= max(int(p.get('min_observations', 1)), 1):
+            self.nearest_fixated = min(self.nearest_fixated, float(np.linalg.norm(point)))
 
     def commanded(self, now: float, cell: int, n_obs: int, direction: np.ndarray | None = None,
                   inhibit_s: float = 0.0) -> None:
@@ -129,10 +142,14 @@ def clamp_distance(point: np.ndarray, dmin: float, dmax: float) -> np.ndarray:
 
 
 def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int],
-                  inhibited: np.ndarray | None = None) -> tuple[Decision, np.ndarray] | None:
+                  inhibited: np.ndarray | None = None,
+                  nearer_than: float = math.inf) -> tuple[Decision, np.ndarray] | None:
     """(the cell the node's parameters p choose among the reachable cells above min_z_m not in
     refused nor within inhibition_of_return_deg of an inhibited direction, its fixation point
-    moved into fixation_distance_m), or None: no cell to fixate."""
+    moved into fixation_distance_m), or None: no cell to fixate. With p['search_nearest'], an
+    observed cell competes only if it lies nearer than nearer_than [m] (the nearest point
+    fixated so far): a search for the nearest object looks again only where it can improve on
+    what it has seen, and at unobserved space otherwise."""
     el = np.radians(p['elevation_limits_deg'])
     candidates = fixation_candidates(ses.mean, ses.directions, p['min_z_m'],
                                      math.radians(p['azimuth_limit_deg']), (el[0], el[1]),
@@ -151,6 +168,11 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
             means, covs = means.copy(), covs.copy()
             means[few] = float(p['prior_distance_m']) * ses.directions[few]
             covs[few] = np.eye(3) * float(p['prior_sigma_m']) ** 2
+    if p.get('search_nearest', False) and math.isfinite(nearer_than):
+        seen = ses.n_frames >= max(least, 1)
+        candidates = candidates & ~(seen & (np.linalg.norm(ses.mean, axis=1) >= nearer_than))
+        if not np.any(candidates):
+            return None
     decision = choose_fixation(means, covs, p['acquisition'], float(p['ucb_alpha']),
                                candidates=candidates)
     point = decision.fixation
