@@ -92,6 +92,10 @@ PARAMETERS: tuple[Param, ...] = (
     Param('search_nearest', False, 'Search for the nearest object: once an observed point has '
           'been fixated, only observed cells nearer than the nearest such point compete with '
           'unobserved space (false: every cell, the UCB of section 3.3.4 alone).'),
+    Param('explore_coverage_deg', 0.0, 'When the choice falls on unobserved space, take the '
+          'unobserved cell with the most unobserved cells within this angle [deg] (the widest '
+          'unexplored view; 0: the UCB\'s own choice, the first of equals), in [0, 90].',
+          '[0, 90]'),
     Param('fixation_cluster_m', 0.0, 'An observed cell is fixated at the mean of the observed '
           'cell means within this distance [m] of its own (the middle of the object it lies '
           'on; 0: at its own mean), in [0, 1].', '[0, 1]'),

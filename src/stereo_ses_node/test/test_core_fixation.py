@@ -138,3 +138,19 @@ def test_search_nearest_looks_again_only_where_it_can_improve() -> None:
     target = observe(ses, np.array([0.4, 1.0, 0.0]), 0.55)
     found = next_fixation(ses, p, *args, policy.nearest_fixated)
     assert found is not None and target[found[0].cell]
+
+
+def test_exploration_goes_to_the_widest_unobserved_view() -> None:
+    """explore_coverage_deg: with everything ahead and to the right observed, the next look at
+    unobserved space goes left, into the widest unexplored view, not to the first unobserved
+    cell in index order."""
+    ses = SensoryEgoSphere(6000, seed=6, init_distance=1.0, init_sigma=0.001)
+    az = np.degrees(np.arctan2(ses.directions[:, 1], ses.directions[:, 0]))
+    el = np.degrees(np.arcsin(ses.directions[:, 2]))
+    seen = (az < 40.0) | (el > 30.0) | (el < -30.0)           # all but a wedge on the left
+    ses.mean[seen] *= 3.0                                       # far walls
+    ses.n_obs[seen] = ses.n_frames[seen] = 5
+    p = dict(DEFAULTS, ucb_alpha=1.0, min_z_m=-10.0)
+    wide = next_fixation(ses, dict(p, explore_coverage_deg=30.0), [])
+    assert wide is not None and not seen[wide[0].cell]
+    assert 45.0 <= az[wide[0].cell] <= 75.0 and abs(el[wide[0].cell]) <= 20.0

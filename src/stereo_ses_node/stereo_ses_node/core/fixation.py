@@ -175,12 +175,29 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
             return None
     decision = choose_fixation(means, covs, p['acquisition'], float(p['ucb_alpha']),
                                candidates=candidates)
+    coverage = math.radians(float(p.get('explore_coverage_deg', 0.0)))
+    if coverage > 0 and ses.n_frames[decision.cell] < max(least, 1):
+        decision = widest_unobserved(ses.directions, means,
+                                     candidates & (ses.n_frames < max(least, 1)), coverage)
     point = decision.fixation
     radius = float(p.get('fixation_cluster_m', 0.0))
     if radius > 0 and ses.n_frames[decision.cell] >= max(least, 1):
         point = cluster_centre(ses.mean, ses.n_frames >= max(least, 1), point, radius)
     dmin, dmax = p['fixation_distance_m']
     return decision, clamp_distance(point, dmin, dmax)
+
+
+def widest_unobserved(directions: np.ndarray, means: np.ndarray, unobserved: np.ndarray,
+                      radius: float, samples: int = 256) -> Decision:
+    """Among the unobserved candidate cells (a boolean mask, not empty), the one with the most
+    unobserved candidates within radius [rad] of its direction (the widest unexplored view, of
+    up to `samples` evenly spread candidates): unobserved cells all score alike under UCB, and
+    their index order sends the eyes to arbitrary directions, ceiling included."""
+    idx = np.flatnonzero(unobserved)
+    pick = idx if idx.size <= samples else idx[np.linspace(0, idx.size - 1, samples).astype(int)]
+    counts = (directions[pick] @ directions[idx].T >= math.cos(radius)).sum(axis=1)
+    cell = int(pick[int(np.argmax(counts))])
+    return Decision(cell, means[cell].copy(), float(counts.max()))
 
 
 def cluster_centre(means: np.ndarray, observed: np.ndarray, point: np.ndarray,
