@@ -280,11 +280,13 @@ def ranges(nums: Iterable[int]) -> list[tuple[int, int]]:
 
 
 def link(c: Citation) -> str:
-    # the path without src/<package>/, which repeats the package's name
+    # the path without src/<package>/, which repeats the package's name; no line anchor: the
+    # function names the place, and a line number would make every edit elsewhere in the file
+    # stale the page
     parts = c.path.split('/')
     short = '/'.join(parts[2:]) if parts[0] == 'src' and len(parts) > 3 else c.path
     where = f'{short}:{c.scope}' if c.scope else short
-    return f'[{where}](../{c.path}#L{c.line})'
+    return f'[{where}](../{c.path})'
 
 
 def render(cites: list[Citation], th: Thesis) -> str:
