@@ -8,182 +8,37 @@ Nothing asserts on wall-clock time: the tests wait for conditions.
 
 from __future__ import annotations
 
-import itertools
-from typing import Any
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from stereo_ses_node import node as ses_node
-from stereo_ses_node.core.geometry import vergence_poses
-from stereo_ses_node.core.synthetic import plane_texture, render_plane
-from stereo_ses_node.messages import NO_PARTNER, PAIR_FAILED, REPEATED_STAMP, UNUSABLE_K
+from stereo_ses_node.messages import REPEATED_STAMP
 from vizzy_runtime.convert import (
-    SHORT_DATA,
-    UNSUPPORTED_ENCODING,
-    numpy_to_image,
     pointcloud2_to_array,
 )
-from vizzy_runtime.input_health import DIAGNOSTICS_TOPIC
-from vizzy_runtime.ros import (
-    Context,
-    Node,
-    Parameter,
-    message,
-    qos_profile_latched,
-    qos_profile_system_default,
+from vizzy_runtime.testing import wait_until
+from vizzy_runtime.tf import TF_TOPIC
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from stereo_live_rig import (  # noqa: E402 (the rig and its helpers; the graph fixture: conftest.py)
+    DEPTH,
+    EGO_CYC,
+    FRAMES,
+    POSES,
+    TIMEOUT,
+    GazeCommand,
+    GazeState,
+    TFMessage,
+    _cells,
+    _feed,
+    _settled,
+    _stamped,
+    _stamps,
 )
-from vizzy_runtime.testing import reported_status, spinning, wait_until
-from vizzy_runtime.tf import TF_STATIC_TOPIC, TF_TOPIC
 
 pytestmark = pytest.mark.live  # also run on the real rclpy (scripts/test_ros.sh)
-
-Image = message('sensor_msgs/msg/Image')
-CameraInfo = message('sensor_msgs/msg/CameraInfo')
-PointCloud2 = message('sensor_msgs/msg/PointCloud2')
-GazeCommand = message('active_vision_msgs/msg/GazeCommand')
-GazeState = message('active_vision_msgs/msg/GazeState')
-TFMessage = message('tf2_msgs/msg/TFMessage')
-TransformStamped = message('geometry_msgs/msg/TransformStamped')
-DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
-
-TIMEOUT = 30.0
-W, H = 320, 240
-F = 160.0 / np.tan(np.radians(85.4 / 2))
-K = np.array([[F, 0, 159.5], [0, F, 119.5], [0, 0, 1.0]])
-DEPTH = 1.0
-BASELINE = 0.204
-FRAMES = {'left': 'left_camera_optical_frame', 'right': 'right_camera_optical_frame'}
-# the cyclopean optical frame (z forward, x right, y down) 0.1 m in front of ego (x fwd, z up)
-EGO_CYC = np.eye(4)
-EGO_CYC[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-EGO_CYC[:3, 3] = [0.1, 0.0, 0.0]
-POSES = dict(zip(('left', 'right'), vergence_poses(BASELINE, 2 * np.arctan(0.102 / DEPTH)),
-                 strict=True))
-
-
-def _stamped(parent: str, child: str, pose: np.ndarray) -> Any:
-    from scipy.spatial.transform import Rotation
-    msg = TransformStamped(child_frame_id=child)
-    msg.header.frame_id = parent
-    t = msg.transform
-    t.translation.x, t.translation.y, t.translation.z = (float(v) for v in pose[:3, 3])
-    t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w = (
-        float(v) for v in Rotation.from_matrix(pose[:3, :3]).as_quat())
-    return msg
-
-
-class Rig(Node):
-    """Publishes the stereo pair, camera_info (as a driver: the default reliable QoS, which the
-    node's reliable inputs need), tf and gaze states; keeps the node's outputs. On the node's
-    resolved topic names."""
-
-    def __init__(self, context: Context, ses: Any) -> None:
-        super().__init__('fake_rig', context=context, start_parameter_services=False)
-        self.points: list[Any] = []
-        self.cells: list[Any] = []
-        self.gaze: list[Any] = []
-        self.last_pair: tuple[Any, Any] | None = None      # the last pair _feed sent
-        self.image_pubs = {e: self.create_publisher(Image, ses._image_subs[e].topic_name,
-                                                    qos_profile_system_default) for e in FRAMES}
-        self.info_pubs = {e: self.create_publisher(CameraInfo, ses._info_subs[e].topic_name,
-                                                   qos_profile_system_default) for e in FRAMES}
-        self.tf_pub = self.create_publisher(TFMessage, ses.resolve_topic_name(TF_STATIC_TOPIC),
-                                            qos_profile_latched)
-        self.state_pub = self.create_publisher(GazeState, ses._gaze_state_sub.topic_name, 10)
-        self.create_subscription(PointCloud2, ses._points_pub.topic_name, self.points.append, 10)
-        self.create_subscription(PointCloud2, ses._cells_pub.topic_name, self.cells.append, 10)
-        self.create_subscription(GazeCommand, ses._gaze_pub.topic_name, self.gaze.append, 10)
-        tex = plane_texture(512)
-        self.images = {e: render_plane(K, POSES[e], W, H, DEPTH, tex, 0.004) for e in FRAMES}
-
-    def publish_info(self) -> None:
-        for eye, pub in self.info_pubs.items():
-            info = CameraInfo(width=W, height=H)
-            info.header.frame_id = FRAMES[eye]
-            info.k = K.reshape(9).tolist()
-            pub.publish(info)
-
-    def publish_tf(self) -> None:
-        self.tf_pub.publish(TFMessage(transforms=[
-            _stamped('ego', FRAMES[e], EGO_CYC @ POSES[e]) for e in FRAMES]))
-
-    def image(self, eye: str, stamp: int, array: np.ndarray | None = None,
-              encoding: str = 'rgb8') -> Any:
-        msg = numpy_to_image(self.images[eye] if array is None else array, encoding)
-        msg.header.frame_id = FRAMES[eye]
-        msg.header.stamp.sec, msg.header.stamp.nanosec = 100 + stamp, 0
-        return msg
-
-
-@pytest.fixture
-def graph(context):
-    ses = ses_node.StereoSesNode(context=context, parameter_overrides=[
-        Parameter('sensor', value='cartesian'), Parameter('n_rf', value=100),
-        Parameter('n_cells', value=3000), Parameter('max_rate_hz', value=30.0),
-        Parameter('decision_period_s', value=0.1), Parameter('frames_per_fixation', value=1),
-        Parameter('cells_rate_hz', value=20.0)])
-    rig = Rig(context, ses)
-    with spinning(context, [rig, ses],
-                  lambda: all(p.get_subscription_count() > 0 for p in rig.image_pubs.values())
-                  and rig.state_pub.get_subscription_count() > 0
-                  and ses._points_pub.get_subscription_count() > 0
-                  and ses._cells_pub.get_subscription_count() > 0
-                  and ses._gaze_pub.get_subscription_count() > 0, TIMEOUT) as executor:
-        yield rig, ses, executor
-
-
-# Image stamps (100 s + these): always increasing, as a camera's; the node refuses a pair that is
-# not newer than the last one it fused.
-_stamps = itertools.count()
-# A pair is published again only when none formed this long after it was sent (lost images):
-# a copy of a pair the worker was merely slow to take would be handled twice (issue 28 item 8).
-RESEND_S = 10.0
-
-
-def _take(n: int) -> int:
-    """The first of n consecutive fresh stamps."""
-    first = next(_stamps)
-    for _ in range(n - 1):
-        next(_stamps)
-    return first
-
-
-def _feed(rig: Rig, ses: Any, executor: Any, left: Any = None, right: Any = None) -> bool:
-    """Publish a pair (a fresh stamp unless given) and wait until the node handled it."""
-    stamp = next(_stamps)
-    left = left or rig.image('left', stamp)
-    right = right or rig.image('right', stamp)
-    rig.last_pair = (left, right)
-    received, done = ses.pairs_received, ses.pairs_processed + 1
-    for _ in range(int(TIMEOUT / RESEND_S)):
-        rig.image_pubs['left'].publish(left)
-        rig.image_pubs['right'].publish(right)
-        if wait_until(lambda: ses.pairs_received > received, RESEND_S, spin=executor):
-            return (wait_until(lambda: ses.pairs_processed >= done, TIMEOUT, spin=executor)
-                    and _settled(ses, executor))
-    return False
-
-
-def _settled(ses: Any, executor: Any) -> bool:
-    """Wait until every pair formed so far was handled (processed or replaced), twice 0.1 s
-    apart: a copy _feed re-sent while a slow worker was busy (a loaded machine) must not be
-    fused later, during the next step of a test."""
-    def idle() -> bool:
-        return ses.pairs_processed + ses.pairs_dropped >= ses.pairs_received
-
-    for _ in range(int(TIMEOUT / 0.1)):
-        if not wait_until(idle, TIMEOUT, spin=executor):
-            return False
-        before = ses.pairs_received
-        wait_until(lambda before=before: ses.pairs_received > before, 0.1, spin=executor)
-        if ses.pairs_received == before and idle():
-            return True
-    return False
-
-
-def _cells(msg: Any) -> np.ndarray:
-    return pointcloud2_to_array(msg).reshape(-1)
 
 
 def test_points_cells_gaze_and_saccades(graph, capfd) -> None:
@@ -356,166 +211,3 @@ def test_camera_poses_are_taken_at_the_pairs_stamp(graph, monkeypatch, capfd) ->
     # 2 s past the newest /tf: no pose for it (after waiting TF_WAIT_S)
     assert _feed(rig, ses, executor) and ses.frames_fused == 1 and ses.frames_skipped == 1
     assert "no transform 'ego' -> 'head'" in capfd.readouterr().err
-
-
-def test_bad_inputs_are_skipped_and_the_sphere_stays_consistent(graph, capfd) -> None:
-    rig, ses, executor = graph
-    rig.publish_info()
-    rig.publish_tf()
-    assert wait_until(lambda: len(ses._k) == 2 and ses._tf.can_transform('ego', FRAMES['right']),
-                      TIMEOUT, spin=executor)
-    assert _feed(rig, ses, executor) and ses.frames_fused == 1
-    obs = ses._ses.n_obs.copy()
-    info = ses._ses.info.copy()
-
-    # left and right sizes differ
-    stamp = next(_stamps)
-    narrow = rig.image('right', stamp, rig.images['right'][:, :-20].copy())
-    assert _feed(rig, ses, executor, rig.image('left', stamp), narrow)
-    assert 'differ' in capfd.readouterr().err
-    # an image whose size disagrees with camera_info (both eyes)
-    stamp = next(_stamps)
-    small = {e: rig.image(e, stamp, rig.images[e][:200, :280].copy()) for e in FRAMES}
-    assert _feed(rig, ses, executor, small['left'], small['right'])
-    assert 'camera_info' in capfd.readouterr().err
-    # textureless images: only NaN disparities
-    stamp = next(_stamps)
-    flat = {e: rig.image(e, stamp, np.full((H, W, 3), 90, np.uint8)) for e in FRAMES}
-    assert _feed(rig, ses, executor, flat['left'], flat['right'])
-    assert 'no valid correspondences' in capfd.readouterr().err
-    assert ses.frames_skipped == 3 and ses.frames_fused == 1
-    assert np.array_equal(ses._ses.n_obs, obs) and np.array_equal(ses._ses.info, info)
-
-    # the eyes' images may arrive interleaved: pairs still form by stamp
-    received = ses.pairs_received
-    processed = ses.pairs_processed
-    first = _take(2)
-    for k in (first, first + 1):
-        rig.image_pubs['left'].publish(rig.image('left', k))
-    for k in (first, first + 1):
-        rig.image_pubs['right'].publish(rig.image('right', k))
-    assert wait_until(lambda: ses.pairs_received >= received + 1, TIMEOUT, spin=executor)
-    assert wait_until(lambda: ses.pairs_processed > processed, TIMEOUT, spin=executor)
-    assert ses.frames_fused >= 2 and ses.images_unpaired == 0
-    # stamps that never match: no pair is formed, the unpaired images go with a message
-    received = ses.pairs_received
-    first = _take(12)
-    for k in range(6):
-        rig.image_pubs['right'].publish(rig.image('right', first + 2 * k))
-        rig.image_pubs['left'].publish(rig.image('left', first + 1 + 2 * k))
-        wait_until(lambda: False, 0.05, spin=executor)
-    assert wait_until(lambda: 'stamps differ' in capfd.readouterr().err, TIMEOUT,
-                      spin=executor)
-    assert ses.pairs_received == received and ses.images_unpaired >= 6
-    # a mono8 image is dropped with a message
-    mono = rig.image('left', next(_stamps), np.zeros((H, W), np.uint8), 'mono8')
-    rig.image_pubs['left'].publish(mono)
-    assert wait_until(lambda: "'mono8'" in capfd.readouterr().err, TIMEOUT, spin=executor)
-    # the node still works
-    fused = ses.frames_fused
-    assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
-
-    # parameters at run time: a new bias rebuilds the sphere, bad values are refused
-    change = [Parameter('bias', value='down'), Parameter('n_cells', value=1000)]
-    assert all(r.successful for r in ses.set_parameters(change))
-    assert _feed(rig, ses, executor)
-    assert ses._ses.n_cells == 1000 and ses._ses.directions[:, 2].mean() < -0.3
-    assert not ses.set_parameters([Parameter('ucb_alpha', value=-1.0)])[0].successful
-    assert not ses.set_parameters([Parameter('bias_weights', value=[0.5, 0.5])])[0].successful
-    assert ses.set_parameters([Parameter('ucb_alpha', value=float('inf'))])[0].successful
-
-
-def test_refused_inputs_are_counted_per_topic_and_reason(graph, capfd, monkeypatch) -> None:
-    """Bad images and camera_info are refused and counted per (topic, reason) in input_health
-    (logged, on /diagnostics); the valid pair right after is fused; no exception escapes, and
-    one raised in a callback or the worker is counted too."""
-    rig, ses, executor = graph
-    health = ses.input_health
-    left, right = (ses._image_subs[e].topic_name for e in ('left', 'right'))
-    left_info = ses._info_subs['left'].topic_name
-    reports: list[Any] = []
-    rig.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, reports.append, 10)
-    rig.publish_info()
-    rig.publish_tf()
-    assert wait_until(lambda: len(ses._k) == 2 and ses._tf.can_transform('ego', FRAMES['right']),
-                      TIMEOUT, spin=executor)
-    assert health.refused() == {}
-    assert wait_until(lambda: health.accepted().get(left_info) == 1, TIMEOUT, spin=executor)
-
-    zero_k = CameraInfo(width=W, height=H)                    # fx = fy = 0: unusable
-    zero_k.header.frame_id = FRAMES['left']
-    zero_k.k = [0.0] * 9
-    rig.info_pubs['left'].publish(zero_k)
-    first = _take(4)
-    unknown = rig.image('left', first)
-    unknown.encoding = 'yuv9'
-    rig.image_pubs['left'].publish(unknown)
-    short = rig.image('right', first)
-    short.height = 2 * H                                      # more rows than the data holds
-    rig.image_pubs['right'].publish(short)
-    rig.image_pubs['left'].publish(rig.image('left', first + 1))  # its right never comes
-    expected = {(left_info, UNUSABLE_K): 1,
-                (left, UNSUPPORTED_ENCODING): 1,
-                (right, SHORT_DATA): 1}
-    assert wait_until(lambda: health.refused() == expected and len(ses._unpaired['left']) == 1,
-                      TIMEOUT, spin=executor), health.refused()
-    assert ses._k['left'][0, 0] == pytest.approx(F)           # the last good K stays in use
-
-    # a valid pair: the waiting left image is dropped without a partner, the pair is fused
-    fused, accepted = ses.frames_fused, health.accepted()
-    rig.image_pubs['left'].publish(rig.image('left', first + 2))
-    rig.image_pubs['right'].publish(rig.image('right', first + 2))
-    assert wait_until(lambda: ses.frames_fused == fused + 1
-                      and any(p.header.stamp.sec == 100 + first + 2 for p in rig.points),
-                      TIMEOUT, spin=executor)
-    expected[(left, NO_PARTNER)] = 1
-    assert health.refused() == expected
-    now = health.accepted()
-    assert now[left] == accepted.get(left, 0) + 1 and now[right] == accepted.get(right, 0) + 1
-    # a valid camera_info after the bad one is accepted again
-    rig.publish_info()
-    assert wait_until(lambda: health.accepted().get(left_info) == accepted[left_info] + 1,
-                      TIMEOUT, spin=executor)
-
-    # /diagnostics: the node's status carries the counts
-    name = ses.get_fully_qualified_name()
-
-    assert wait_until(lambda: reported_status(reports, name).get(f'{left}: {NO_PARTNER}')
-                      == '1', TIMEOUT, spin=executor), reported_status(reports, name)
-    values = reported_status(reports, name)
-    assert values[f'{left_info}: {UNUSABLE_K}'] == '1'
-    assert values[f'{right}: {SHORT_DATA}'] == '1'
-    # each first refusal logged once, naming topic and reason; nothing raised
-    err = capfd.readouterr().err
-    assert err.count(f'{left_info}: refused: {UNUSABLE_K}') == 1, err
-    assert f"{left}: refused: {UNSUPPORTED_ENCODING}: 'yuv9'" in err, err
-    assert f'{right}: refused: {SHORT_DATA}' in err, err
-    assert (f'{left}: refused: {NO_PARTNER}: image stamped {100 + first + 1}.000 s'
-            in err), err
-    assert 'Traceback' not in err
-    assert not any(reason.startswith('failed on') for _, reason in health.refused())
-
-    # an exception in a subscription callback (guarded) or in the worker: counted on its topic
-    def boom(*_: Any, **__: Any) -> None:
-        raise RuntimeError('on fire')
-
-    monkeypatch.setattr(ses_node, 'camera_k', boom)
-    rig.publish_info()
-    right_info = ses._info_subs['right'].topic_name
-    for topic in (left_info, right_info):
-        expected[(topic, 'failed on a camera_info: RuntimeError')] = 1
-    assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
-        health.refused()
-    monkeypatch.setattr(ses, '_prepare', boom)
-    skipped = ses.frames_skipped
-    rig.image_pubs['left'].publish(rig.image('left', first + 3))
-    rig.image_pubs['right'].publish(rig.image('right', first + 3))
-    for topic in (left, right):
-        expected[(topic, f'{PAIR_FAILED}: RuntimeError')] = 1
-    assert wait_until(lambda: health.refused() == expected, TIMEOUT, spin=executor), \
-        health.refused()
-    assert ses.frames_skipped == skipped + 1
-    monkeypatch.undo()                       # and the node goes on
-    fused = ses.frames_fused
-    assert _feed(rig, ses, executor) and ses.frames_fused == fused + 1
-    assert 'refused: failed on a camera_info: RuntimeError: on fire' in capfd.readouterr().err
