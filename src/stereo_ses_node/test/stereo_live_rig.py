@@ -25,7 +25,7 @@ from vizzy_runtime.ros import (
     qos_profile_latched,
     qos_profile_system_default,
 )
-from vizzy_runtime.testing import spinning, wait_until
+from vizzy_runtime.testing import scaled, spinning, wait_until
 from vizzy_runtime.tf import TF_STATIC_TOPIC
 
 Image = message('sensor_msgs/msg/Image')
@@ -37,7 +37,7 @@ TFMessage = message('tf2_msgs/msg/TFMessage')
 TransformStamped = message('geometry_msgs/msg/TransformStamped')
 DiagnosticArray = message('diagnostic_msgs/msg/DiagnosticArray')
 
-TIMEOUT = 30.0
+TIMEOUT = scaled(30.0)
 W, H = 320, 240
 F = 160.0 / np.tan(np.radians(85.4 / 2))
 K = np.array([[F, 0, 159.5], [0, F, 119.5], [0, 0, 1.0]])

@@ -12,6 +12,7 @@ import pytest
 
 from stereo_ses_node import stereo_file
 from stereo_ses_node.core.synthetic import Layer, layered_pair, plane_texture
+from vizzy_runtime.testing import scaled
 
 W, H = 256, 192
 D_BACK, D_FRONT = 12.0, 28.0
@@ -120,6 +121,6 @@ def test_bad_input_is_one_line_and_status_2(pair, capsys, tmp_path):
 def test_console_entry_point_reports_without_traceback(tmp_path):
     proc = subprocess.run([sys.executable, '-m', 'stereo_ses_node.stereo_file',
                            str(tmp_path / 'a.png'), str(tmp_path / 'b.png')],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=scaled(120))
     assert proc.returncode == 2 and proc.stdout == ''
     assert proc.stderr.strip() == f'stereo_file: {tmp_path / "a.png"}: no such file'

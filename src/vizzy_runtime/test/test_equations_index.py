@@ -13,13 +13,13 @@ from types import ModuleType
 
 import pytest
 
-from vizzy_runtime.testing import repo_root
+from vizzy_runtime.testing import repo_root, scaled
 
 
 def test_equations_page_is_generated_from_the_code() -> None:
     root = repo_root()
     run = subprocess.run([sys.executable, str(root / 'scripts' / 'equations_index.py'), '--check'],
-                         capture_output=True, text=True, timeout=120, cwd=root)
+                         capture_output=True, text=True, timeout=scaled(120), cwd=root)
     assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
 
 

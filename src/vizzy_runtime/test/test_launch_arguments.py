@@ -33,6 +33,7 @@ from vizzy_runtime.launch_args import (
     node_parameters,
 )
 from vizzy_runtime.rclpy_compat import arguments
+from vizzy_runtime.testing import scaled
 
 REPO = Path(__file__).resolve().parents[3]
 NODES = {'sim', 'gaze_controller', 'foveation', 'stereo_ses', 'cylinder_detector', 'mot_planner',
@@ -144,7 +145,7 @@ def test_a_params_file_that_is_no_parameters_file_is_refused(tmp_path):
 
 def test_vizzy_launch_refuses_an_unknown_key_before_starting_anything():
     done = subprocess.run([sys.executable, '-m', 'vizzy_runtime.cli', 'launch', 'rviz:=true'],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=scaled(120))
     assert done.returncode == 2 and done.stdout == ''
     assert done.stderr.splitlines() == [
         "vizzy: unknown launch argument 'rviz' (known: scene, seed, params_file, namespace, "
