@@ -244,6 +244,7 @@ def render_sim_sequence(root: Path, seed: int, people: int, frames: int, fps: fl
     from vizzy_sim_bridge.core.model import EYE_CAMERA, compile_model
     from vizzy_sim_bridge.core.render import CameraRenderer
     from vizzy_sim_bridge.core.scenes import build_scene
+    from vizzy_sim_bridge.make_samples import mot_gt_row
     from vizzy_vision.camera import EYE_HFOV_DEG, camera_matrix, project
     from vizzy_vision.kinematics import CAMERA_FRAMES, JOINT_NAMES, frames_in_base
 
@@ -276,17 +277,10 @@ def render_sim_sequence(root: Path, seed: int, people: int, frames: int, fps: fl
             cv2.imwrite(str(seq / 'img1' / f'{f + 1:06d}.jpg'),
                         cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 95])
             for box in scene.moving_ground_truth(model, data):
-                uv = project(k, pose, box['corners'])
-                if np.isnan(uv).any():                     # partly behind the camera
-                    continue
-                (u0, v0), (u1, v1) = uv.min(axis=0), uv.max(axis=0)
-                cu0, cv0 = max(u0, 0.0), max(v0, 0.0)
-                cu1, cv1 = min(u1, float(width)), min(v1, float(height))
-                if cu1 - cu0 < 4 or cv1 - cv0 < 16:        # out of view
-                    continue
-                visible = (cu1 - cu0) * (cv1 - cv0) / ((u1 - u0) * (v1 - v0))
-                rows.append(f'{f + 1},{box["id"] + 1},{cu0:.2f},{cv0:.2f},{cu1 - cu0:.2f},'
-                            f'{cv1 - cv0:.2f},1,1,{visible:.3f}')
+                row = mot_gt_row(f + 1, box['id'] + 1, project(k, pose, box['corners']),
+                                 width, height)
+                if row is not None:
+                    rows.append(row)
     (seq / 'gt' / 'gt.txt').write_text('\n'.join(rows) + '\n')
     (seq / 'seqinfo.ini').write_text(
         f'[Sequence]\nname={name}\nimDir=img1\nframeRate={fps:g}\nseqLength={frames}\n'

@@ -59,6 +59,22 @@ NOISE_SEED = 99                               # depth noise: SeedSequence([TABLE
 OBJECT_WINDOW = 160                           # px: the foveation node's classifier window
 
 
+def mot_gt_row(frame: int, track: int, uv: np.ndarray, width: int, height: int) -> str | None:
+    """A MOTChallenge gt.txt row (1-based frame and id) for a walker whose corners project to uv
+    (N, 2) px: their bounding box clipped to the image, the visible share as the last field;
+    None when a corner is behind the camera or the clipped box is too small to see."""
+    if np.isnan(uv).any():                             # partly behind the camera
+        return None
+    (u0, v0), (u1, v1) = uv.min(axis=0), uv.max(axis=0)
+    cu0, cv0 = max(u0, 0.0), max(v0, 0.0)
+    cu1, cv1 = min(u1, float(width)), min(v1, float(height))
+    if cu1 - cu0 < 4 or cv1 - cv0 < 16:                # out of view
+        return None
+    visible = (cu1 - cu0) * (cv1 - cv0) / ((u1 - u0) * (v1 - v0))
+    return (f'{frame},{track},{cu0:.2f},{cv0:.2f},{cu1 - cu0:.2f},{cv1 - cv0:.2f},1,1,'
+            f'{visible:.3f}')
+
+
 def pedestrian_rows(seed: int = MOT_SEED, people: int = MOT_PEOPLE, frames: int = MOT_FRAMES,
                     fps: float = MOT_FPS, image_dir: Path | None = None) -> list[str]:
     """gt.txt rows (MOT16/17 layout: frame, id, x, y, w, h, conf 1, class 1, visibility) of the
@@ -92,17 +108,10 @@ def pedestrian_rows(seed: int = MOT_SEED, people: int = MOT_PEOPLE, frames: int 
                             cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
                             [cv2.IMWRITE_JPEG_QUALITY, MOT_JPEG_QUALITY])
             for box in scene.moving_ground_truth(model, data):
-                uv = project(k, pose, box['corners'])
-                if np.isnan(uv).any():                     # partly behind the camera
-                    continue
-                (u0, v0), (u1, v1) = uv.min(axis=0), uv.max(axis=0)
-                cu0, cv0 = max(u0, 0.0), max(v0, 0.0)
-                cu1, cv1 = min(u1, float(width)), min(v1, float(height))
-                if cu1 - cu0 < 4 or cv1 - cv0 < 16:        # out of view
-                    continue
-                visible = (cu1 - cu0) * (cv1 - cv0) / ((u1 - u0) * (v1 - v0))
-                rows.append(f'{f + 1},{box["id"] + 1},{cu0:.2f},{cv0:.2f},{cu1 - cu0:.2f},'
-                            f'{cv1 - cv0:.2f},1,1,{visible:.3f}')
+                row = mot_gt_row(f + 1, box['id'] + 1, project(k, pose, box['corners']),
+                                 width, height)
+                if row is not None:
+                    rows.append(row)
     finally:
         if renderer is not None:
             renderer.close()
