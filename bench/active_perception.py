@@ -58,6 +58,7 @@ os.environ.setdefault('VIZZY_RUNTIME', 'bundled')
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
+from vizzy_runtime.convert import stamp_seconds  # noqa: E402
 from vizzy_runtime.launcher import (  # noqa: E402
     Launcher,
     default_graph_file,
@@ -166,9 +167,8 @@ class BenchNode(Node):
                 source = str(msg.active_source) or '?'
                 run.saccades_by_source[source] = run.saccades_by_source.get(source, 0) + 1
                 p = msg.fixation_point
-                t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-                run.fixations.append([round(t, 2), source, round(p.x, 3), round(p.y, 3),
-                                      round(p.z, 3)])
+                run.fixations.append([round(stamp_seconds(msg.header.stamp), 2), source,
+                                      round(p.x, 3), round(p.y, 3), round(p.z, 3)])
             run.in_saccade = bool(msg.in_saccade)
 
     def _on_joints(self, msg: Any) -> None:
