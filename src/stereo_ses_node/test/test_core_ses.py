@@ -72,6 +72,23 @@ def test_lookup_small_and_dense_spheres():
         np.testing.assert_array_equal(lk.query(q), brute_force_associate(q, cells))
 
 
+def test_lookup_stores_each_bin_once():
+    # issue 27: every padded width's table held every bin (92 MB for 20,000 cells); each bin's
+    # candidates are now in its own width's table only, and the answers stay the brute force's
+    ses = SensoryEgoSphere(20000, 'unbiased', seed=0)
+    lk = ses.lookup
+    rows = sum(t[0].shape[0] for t in lk.tables.values())
+    assert rows == np.count_nonzero(lk.bin_group)
+    for width, (idx, *_) in lk.tables.items():
+        members = np.nonzero(lk.bin_group == width // 8)[0]
+        assert idx.shape == (members.size, width)
+        np.testing.assert_array_equal(lk.bin_row[members], np.arange(members.size))
+    stored = sum(a.nbytes for t in lk.tables.values() for a in t)
+    assert stored < 20e6, stored
+    q = unit(np.random.default_rng(11), 20000)
+    np.testing.assert_array_equal(lk.query(q), brute_force_associate(q, ses.directions))
+
+
 def test_fusion_shrinks_covariance_as_eq_3_34_says():
     ses = SensoryEgoSphere(500, seed=0, init_sigma=10.0)
     d = ses.directions[42]

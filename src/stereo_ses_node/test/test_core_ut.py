@@ -6,6 +6,7 @@ import pytest
 from stereo_ses_node.core.geometry import project, triangulate_midpoint, vergence_poses
 from stereo_ses_node.core.sensors import cartesian_sensor
 from stereo_ses_node.core.ut import (
+    UT_CHUNK,
     SigmaPointTable,
     StereoRig,
     UTParams,
@@ -162,3 +163,29 @@ def test_table_transform_equals_sigma_point_array_path():
     assert 0 < np.sum(got[2]) < got[2].size               # some rows invalid (behind a camera)
     for a, b in zip(got, ref, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15, equal_nan=True)
+
+
+def test_transform_in_blocks_is_bit_identical_and_the_table_stores_no_offsets():
+    # issue 27: the table keeps h = sqrt(L + lambda) sigma per RF, not (N_rf, 2L+1, 2) offset
+    # arrays (23 MB for 40,000 RFs), and transform works UT_CHUNK rows at a time
+    s = cartesian_sensor(640, 480, 200, 200)
+    table = SigmaPointTable(s, s)
+    arrays = {id(v): v for v in vars(table).values() if isinstance(v, np.ndarray)}
+    assert sum(v.nbytes for v in arrays.values()) <= 4 * s.n_rf * 8
+    rig = rig_fixating(1.2, version=0.05, tilt=0.1)
+    rng = np.random.default_rng(7)
+    il = rng.choice(s.n_rf, 2 * UT_CHUNK + 123, replace=False)
+    ul = s.centers[il] + rng.uniform(-0.5, 0.5, (il.size, 2))
+    ur = ul - [rng.uniform(5.0, 40.0), 0.3]
+    ur[::11, 0] += 300.0                                    # diverging rays: invalid rows
+    ir = s.rf_index(ur[:, 0], ur[:, 1])
+    # the sigma points are mean + the stored offsets, as the thesis's table defines them
+    old = np.concatenate([ul[:, None, :] + table.offsets_left[il],
+                          ur[:, None, :] + table.offsets_right[ir]], axis=-1)
+    sp = table.sigma_points(ul, ur, il, ir)
+    np.testing.assert_array_equal(sp, old)
+    ref = unscented_transform(rig, old, table.wm, table.wc)      # all rows at once
+    got = table.transform(rig, ul, ur, il, ir)
+    assert 0 < np.sum(got[2]) < got[2].size
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(a, b)                     # the same bits, NaNs included

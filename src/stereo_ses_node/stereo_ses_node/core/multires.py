@@ -365,8 +365,7 @@ class FoveatedSGBM:
         self.params, self.coarse_to_fine = params, coarse_to_fine
         top = min(int(max_level), coarsest_level(width, height, max_level))
         ys, xs = np.mgrid[0:height, 0:width]
-        ecc = np.hypot(xs - cx, ys - cy).ravel()
-        self.eccentricity = ecc.reshape(height, width)
+        ecc = self.eccentricity.ravel()
         self.levels: list[_Level] = []
         inner, lvl = 0.0, 0
         while True:
@@ -381,9 +380,10 @@ class FoveatedSGBM:
             last = lvl == top or box == (0, 0, lw, lh)
             if last:                                 # the rest of the image, all of this level
                 outer, box = math.inf, (0, 0, lw, lh)
-            dst = np.nonzero((ecc >= inner) & (ecc < outer))[0]
-            ix = np.clip(np.rint(xs.ravel()[dst] / s).astype(np.int64), box[0], box[2] - 1)
-            iy = np.clip(np.rint(ys.ravel()[dst] / s).astype(np.int64), box[1], box[3] - 1)
+            # int32 indices (the image has < 2^31 pixels): half the memory of int64
+            dst = np.nonzero((ecc >= inner) & (ecc < outer))[0].astype(np.int32)
+            ix = np.clip(np.rint(xs.ravel()[dst] / s).astype(np.int32), box[0], box[2] - 1)
+            iy = np.clip(np.rint(ys.ravel()[dst] / s).astype(np.int32), box[1], box[3] - 1)
             src = (iy - box[1]) * (box[2] - box[0]) + (ix - box[0])
             self.levels.append(_Level(lvl, outer, box, dst, src))
             if last:
@@ -393,6 +393,13 @@ class FoveatedSGBM:
         # the level that searches the whole window for the range (one coarser than the last)
         self.range_level = min(self.n_levels,
                                coarsest_level(width, height, 8, min_side=MIN_SEARCH_SIDE))
+
+    @property
+    def eccentricity(self) -> np.ndarray:
+        """(height, width) float64: each pixel's distance [px] from the fixation (computed when
+        asked: the node never needs it after construction)."""
+        ys, xs = np.mgrid[0:self.height, 0:self.width]
+        return np.hypot(xs - self.center[0], ys - self.center[1])
 
     def level_map(self) -> np.ndarray:
         """(height, width) int: the pyramid level each pixel's disparity comes from."""
