@@ -1,8 +1,8 @@
 """The graph's resource budget: CPU time per output, cores at the configured rates, memory.
 
 Runs the shipped graph (src/vizzy_runtime/config/graph.yaml, bundled runtime, as `vizzy launch`
-runs it: respawn standbys included) and, once every node is up and every standby has done its
-imports, measures a window of --seconds:
+runs it: each respawn_standby node forked by its zygote, vizzy_runtime/zygote.py) and, once every
+node is up and every zygote has done its imports, measures a window of --seconds:
 
 - per node: CPU seconds (user + system, /proc/<pid>/stat) and messages on each output topic;
   `cpu_ms_per_output` is the node's CPU over the messages of its primary output (the sim: a stereo
@@ -14,8 +14,9 @@ imports, measures a window of --seconds:
 - per output: `achieved_rate_fraction` = messages per second over the configured rate (on a quiet
   machine, whether the graph keeps up; foveation drops the frames of saccades on purpose);
 - memory: each node's peak RSS and PSS over the window (/proc/<pid>/status, smaps_rollup), their
-  sums `graph_rss_mb` / `graph_pss_mb`, and the standbys' `standby_pss_mb` (what a warm spare
-  costs: PSS counts the pages they share with the running nodes once between them);
+  sums `graph_rss_mb` / `graph_pss_mb`, and the zygotes' (the standbys') `standby_pss_mb` (PSS
+  counts the pages they share with their nodes once between them: half of each shared page is
+  the zygote's) and `standby_uss_mb` (Private_Clean + Private_Dirty: what their end would free);
 - the machine: the share of all cores idle over the window (/proc/stat).
 
 With --lockstep the sim advances only as fast as every node consumes its frames
@@ -31,8 +32,9 @@ sim renders on demand; use it to compare two versions, not as the budget.
 Prints, last, one JSON object: per node {cpu_ms_per_output, cores_at_configured_rate,
 cores_measured, rss_mb, pss_mb, outputs: {topic: {configured_hz, achieved_hz,
 achieved_rate_fraction}}}, and the totals robot_cores_at_configured_rates (every node but the
-sim), sim_cores_at_configured_rate, graph_rss_mb, graph_pss_mb, standby_pss_mb,
-standby_import_cpu_s, machine_idle_fraction, min_achieved_rate_fraction.
+sim), sim_cores_at_configured_rate, graph_rss_mb, graph_pss_mb, standby_pss_mb, standby_uss_mb,
+standby_import_cpu_s (the zygotes' CPU: the imports, once), machine_idle_fraction,
+min_achieved_rate_fraction.
 """
 
 from __future__ import annotations
@@ -175,6 +177,18 @@ def memory_mb(pid: int) -> tuple[float, float] | None:
     return rss / 1024.0, pss / 1024.0
 
 
+def uss_mb(pid: int) -> float | None:
+    """Private_Clean + Private_Dirty of process pid [MB] (smaps_rollup): the memory its end would
+    free; None when it is gone."""
+    try:
+        with open(f'/proc/{pid}/smaps_rollup') as f:
+            kb = sum(int(line.split()[1]) for line in f
+                     if line.startswith(('Private_Clean:', 'Private_Dirty:')))
+    except (OSError, ValueError):
+        return None
+    return kb / 1024.0
+
+
 def machine_cpu() -> tuple[int, int]:
     """(idle, total) jiffies of all cores so far (/proc/stat)."""
     with open('/proc/stat') as f:
@@ -224,7 +238,8 @@ def wait_for_graph(node: BudgetNode, launcher: Launcher, conductor: Conductor | 
 
 
 def wait_for_standbys(launcher: Launcher) -> dict[str, float]:
-    """Until every node's standby has done its imports; their CPU seconds so far."""
+    """Until every node's zygote has done its imports (it has forked the node); their CPU seconds
+    so far."""
     expected = {s.name for s in launcher.graph.nodes if launcher.graph.standby(s)}
     deadline = time.monotonic() + STANDBY_TIMEOUT_S
     while time.monotonic() < deadline:
@@ -281,7 +296,8 @@ def measure(node: BudgetNode, launcher: Launcher, seconds: float,
 
 
 def summarize(window: dict[str, Any], rates: Params, standby_mb: dict[str, float],
-              standby_cpu: dict[str, float]) -> dict[str, Any]:
+              standby_cpu: dict[str, float],
+              standby_uss: dict[str, float] | None = None) -> dict[str, Any]:
     duration = window['duration_s']
     nodes: dict[str, Any] = {}
     for name, cpu in window['cpu_s'].items():
@@ -332,6 +348,8 @@ def summarize(window: dict[str, Any], rates: Params, standby_mb: dict[str, float
         'graph_pss_mb': round(sum(v['pss_mb'] for v in nodes.values()), 1),
         'standby_pss_mb': round(sum(standby_mb.values()), 1) if standby_mb else None,
         'standby_pss_mb_by_node': standby_mb or None,
+        'standby_uss_mb': round(sum(standby_uss.values()), 1) if standby_uss else None,
+        'standby_uss_mb_by_node': standby_uss or None,
         'standby_import_cpu_s': round(sum(standby_cpu.values()), 2) if standby_cpu else None,
         'machine_idle_fraction': round(window['idle_fraction'], 3),
         'machine_cores': os.cpu_count(),
@@ -348,7 +366,8 @@ def main() -> int:
                         help='seconds run before the window (after the standbys are ready)')
     parser.add_argument('--lockstep', action='store_true',
                         help='the sim waits for every node: load-independent, no standbys')
-    parser.add_argument('--no-standby', action='store_true', help='no respawn standbys')
+    parser.add_argument('--no-standby', action='store_true',
+                        help='no zygotes (respawn_standby off: each node started directly)')
     parser.add_argument('--set', nargs='+', default=[], metavar='NODE.PARAM=VALUE',
                         help='a parameter for the run, e.g. mot_planner.scale=1.1')
     parser.add_argument('--out', type=Path, default=None,
@@ -379,8 +398,9 @@ def main() -> int:
                 rates = read_rates(node, launcher)
                 standby_cpu: dict[str, float] = {}
                 standby_mb: dict[str, float] = {}
+                standby_uss: dict[str, float] = {}
                 if any(graph.standby(s) for s in graph.nodes) and conductor is None:
-                    print('graph_budget: waiting for the standbys\' imports',
+                    print('graph_budget: waiting for the zygotes\' imports',
                           file=sys.stderr, flush=True)
                     standby_cpu = wait_for_standbys(launcher)
                 if conductor is None:
@@ -391,12 +411,13 @@ def main() -> int:
                       flush=True)
                 window = measure(node, launcher, ns.seconds, conductor)
                 for name, proc in launcher.standbys.items():
-                    mem = memory_mb(proc.pid)
-                    if mem is not None:
+                    mem, uss = memory_mb(proc.pid), uss_mb(proc.pid)
+                    if mem is not None and uss is not None:
                         standby_mb[name] = round(mem[1], 1)
+                        standby_uss[name] = round(uss, 1)
             finally:
                 launcher.stop()
-    summary = summarize(window, rates, standby_mb, standby_cpu)
+    summary = summarize(window, rates, standby_mb, standby_cpu, standby_uss)
     summary.update(lockstep=ns.lockstep, rates=rates, set=ns.set or None)
     if ns.out is not None:
         ns.out.write_text(json.dumps(summary, indent=1))

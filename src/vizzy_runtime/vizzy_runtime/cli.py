@@ -51,43 +51,24 @@ def cmd_run(ns: argparse.Namespace) -> int:
     end_with_launcher()                  # started by `vizzy launch`: end when it does
     ep = find_entry_point(ns.package, ns.executable)
     main = ep.load()
-    if ns.standby:
-        _prepare_standby(ep.module)
-    if ns.standby and not _standby_released():
-        # dismissed: nothing to clean up (no DDS yet, no files); console_main's exit skips the
-        # seconds the interpreter would spend collecting the imported modules (torch)
-        return 0
+    if ns.zygote:
+        from .zygote import serve
+        _prepare_zygote(ep.module)
+        return serve(main, [ns.executable, *ns.args])
     sys.argv = [ns.executable, *ns.args]
     result = main()
     return int(result or 0)
 
 
-def _prepare_standby(module_name: str) -> None:
-    """What can be done before `go` without joining the network: the runtime's warm-up and the
-    node module's own `standby_prepare()` if it has one (the sim probes its OpenGL backend)."""
+def _prepare_zygote(module_name: str) -> None:
+    """What a zygote does before it forks the node, without joining the network or starting a
+    thread: the runtime's warm-up and the node module's own `standby_prepare()` if it has one
+    (the sim probes its OpenGL backend in a child process; the answer is cached for the node)."""
     from .ros import warm_up
     warm_up()
     prepare = getattr(sys.modules.get(module_name), 'standby_prepare', None)
     if callable(prepare):
         prepare()
-
-
-def _standby_released() -> bool:
-    """`vizzy run --standby`: the node's modules are imported (the slow part of a start); wait for
-    `go` on stdin, then run it (the launcher's respawn_standby). False: stdin ended or a signal
-    came first (the launcher dismissed this spare)."""
-    from .launcher import STANDBY_READY
-    previous = {sig: signal.signal(sig, lambda *_: sys.exit(0))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        print(STANDBY_READY, flush=True)
-        line = sys.stdin.readline()
-    except (SystemExit, KeyboardInterrupt):
-        return False
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-    return line.strip() == 'go'
 
 
 def launch_arguments(items: list[str], namespace: str = '') -> tuple[str | None, Any]:
@@ -249,9 +230,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest='verb', required=True)
 
     run = sub.add_parser('run', help='run one node (like ros2 run)')
-    run.add_argument('--standby', action='store_true',
-                     help='import the node, then wait for "go" on stdin before running it (the '
-                          "launcher's respawn_standby)")
+    run.add_argument('--zygote', action='store_true',
+                     help='import the node once, then fork it, and again at each "go" on stdin '
+                          "(the launcher's respawn_standby; vizzy_runtime/zygote.py)")
     run.add_argument('package')
     run.add_argument('executable')
     run.add_argument('args', nargs=argparse.REMAINDER, help='node arguments, incl. --ros-args ...')

@@ -7,6 +7,10 @@ SIGKILL to whatever is still running after a grace period; further signals durin
 ignored, so the launcher never exits with nodes left behind (each node runs in its own session and
 sees no terminal signal of its own). The launcher names each node it had to escalate, and why.
 
+A node with respawn_standby (on the bundled runtime) is forked by a zygote, `vizzy run --zygote`,
+that did its imports once and stays beside it sharing those pages (zygote.py): a respawn is a
+fork of it, not a cold start. procs[name] is then a ForkedNode, the node's Popen-like handle.
+
 A graph-level namespace (`vizzy launch --namespace /head2`; `namespace:=/head2` under ros2 launch)
 prefixes every node's namespace as launch_ros's PushROSNamespace does (a node's absolute namespace
 stays), and adds GRAPH_REMAPS to every node so that absolute /clock, /tf and /tf_static users
@@ -24,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import importlib.metadata
-import math
 import os
 import re
 import signal
@@ -44,6 +47,7 @@ from . import loopback
 from .launch_args import LaunchArgs, LaunchError, node_parameters, param_assignment
 from .launch_args import namespace_proof_params as namespace_proof_params  # re-exported
 from .process_exit import LAUNCHER_PID_ENV
+from .zygote import ForkedNode, ZygoteProcess
 
 # Given to every node of a namespaced graph (before the node's own remappings, like SetRemap):
 # relative targets resolve inside the namespace. At the root namespace they would change nothing.
@@ -104,7 +108,8 @@ class Graph:
                 self.respawn_delay if spec.respawn_delay is None else spec.respawn_delay)
 
     def standby(self, spec: NodeSpec) -> bool:
-        """Whether the launcher keeps a started-and-imported spare process for this node."""
+        """Whether the launcher forks this node from a zygote that keeps its modules imported
+        (zygote.py), so that a respawn is a fork, not a cold start."""
         wanted = self.respawn_standby if spec.respawn_standby is None else spec.respawn_standby
         return wanted and self.respawns(spec)[0]
 
@@ -257,24 +262,23 @@ def node_command(spec: NodeSpec, use_sim_time: bool, namespace: str = '',
             *spec.arguments, *ros_args]
 
 
-def standby_command(cmd: list[str]) -> list[str]:
-    """node_command's command for a standby: `vizzy run --standby ...` imports the node, then waits
-    for `go` on its stdin (cli.cmd_run)."""
+def zygote_command(cmd: list[str]) -> list[str]:
+    """node_command's command for a respawn_standby node: `vizzy run --zygote ...` imports the
+    node once and forks it, again at each `go` on its stdin (zygote.py)."""
     i = cmd.index('run')
-    return [*cmd[:i + 1], '--standby', *cmd[i + 1:]]
-
-
-# What `vizzy run --standby` prints once its imports and warm-up are done (cli.cmd_run).
-STANDBY_READY = 'standby ready'
+    return [*cmd[:i + 1], '--zygote', *cmd[i + 1:]]
 
 
 def _pump(prefix: str, stream: TextIO, out: TextIO,
-          on_line: Callable[[str], None] | None = None) -> None:
+          on_line: Callable[[str], None] | None = None,
+          on_end: Callable[[], None] | None = None) -> None:
     for line in stream:
         out.write(f'{prefix} {line}')
         out.flush()
         if on_line is not None:
             on_line(line)
+    if on_end is not None:
+        on_end()
 
 
 class LaunchStopped(KeyboardInterrupt):
@@ -330,10 +334,16 @@ class Launcher:
                                               LAUNCHER_PID_ENV: str(os.getpid())}))
         self.grace_s = grace_s
         self.output = output or sys.stdout
-        self.procs: dict[str, subprocess.Popen[str]] = {}
-        # respawn_standby nodes: a spare process per node, imports done, waiting to take over
-        self.standbys: dict[str, subprocess.Popen[str]] = {}
-        self.ready_standbys: set[int] = set()   # pids of standbys done importing (STANDBY_READY)
+        # respawn_standby forks from zygotes on the bundled runtime only: importing the real rclpy
+        # starts threads, and fork() after threads is unsafe (there a respawn starts cold)
+        self.forks = loopback.bundled_runtime(self.env)
+        # each node's process: a Popen, or a ForkedNode (the Popen-like handle of a node its
+        # zygote forked: respawn_standby)
+        self.procs: dict[str, subprocess.Popen[str] | ForkedNode] = {}
+        # respawn_standby nodes: the zygote that forks each (zygote.py), and the pids of those
+        # done importing (they have forked their node)
+        self.zygotes: dict[str, ZygoteProcess] = {}
+        self.ready_standbys: set[int] = set()
         self.escalated: dict[str, str] = {}  # node -> the signal it needed beyond SIGINT, and why
         self.respawned: dict[str, int] = {}  # node -> times it was started again
         self.stop_seconds: dict[str, float] = {}  # node -> seconds from stop()'s SIGINT to its exit
@@ -344,13 +354,11 @@ class Launcher:
         self._pending_respawns = 0
         self._supervisor: threading.Thread | None = None
         self._started_at: dict[str, float] = {}
-        self._last_standby_at = -math.inf
 
-    # A node's standby starts once the node has run this long, and one standby at a time: their
-    # imports (seconds of CPU each) must not compete with the graph's own start-up, nor cost
-    # anything to a short run (a demo, a test).
-    STANDBY_AFTER_S = 30.0
-    STANDBY_STAGGER_S = 3.0
+    @property
+    def standbys(self) -> dict[str, subprocess.Popen[str]]:
+        """The zygotes' processes by node (what a node's respawn forks from; benchmarks)."""
+        return {name: z.proc for name, z in self.zygotes.items()}
 
     def full_names(self) -> list[str]:
         """The full name (namespace and name) of each node of the graph, as it will run."""
@@ -374,58 +382,48 @@ class Launcher:
                                             daemon=True)
         self._supervisor.start()
 
-    def _popen(self, name: str, cmd: list[str], standby: bool = False) -> subprocess.Popen[str]:
+    def _popen(self, name: str, cmd: list[str],
+               zygote: Callable[[subprocess.Popen[str]], ZygoteProcess] | None = None
+               ) -> subprocess.Popen[str]:
         index = self._commands[name][2]
         proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                stdin=subprocess.PIPE if standby else None, text=True, bufsize=1,
+                                stdin=subprocess.PIPE if zygote else None, text=True, bufsize=1,
                                 start_new_session=True)
-
-        def note_ready(line: str) -> None:
-            if line.strip() == STANDBY_READY:
-                self.ready_standbys.add(proc.pid)
-
+        handle = zygote(proc) if zygote else None
         t = threading.Thread(target=_pump, args=(f'[{name}-{index}]', proc.stdout, self.output,
-                                                 note_ready if standby else None), daemon=True)
+                                                 handle and handle.on_line,
+                                                 handle and handle.ended.set), daemon=True)
         t.start()
         self._threads.append(t)
+        if handle is not None:
+            self.zygotes[name] = handle
         return proc
 
     def _spawn(self, name: str) -> None:
         again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
-        standby = self.standbys.pop(name, None)
-        if standby is not None and standby.poll() is None:
-            try:
-                assert standby.stdin is not None
-                standby.stdin.write('go\n')
-                standby.stdin.close()
-            except (OSError, ValueError):
-                standby = None   # it died meanwhile: start a fresh process instead
-            else:
-                self.procs[name] = standby
-                self._started_at[name] = time.monotonic()
-                self.output.write(f'[INFO] [launch]: standby with pid [{standby.pid}] took over: '
-                                  f'{name}{again}\n')
-                return
+        self._started_at[name] = time.monotonic()
+        if self.forks and self.graph.standby(self._commands[name][0]):
+            # a fork of the node's zygote (a fresh zygote at the first start, or if it died);
+            # "process started" is written when the zygote reports the fork (_forked)
+            zygote = self.zygotes.get(name)
+            node = zygote.respawn() if zygote is not None else None
+            if node is None:
+                self._popen(name, zygote_command(self._commands[name][1]),
+                            lambda proc: ZygoteProcess(proc, lambda n: self._forked(name, n)))
+                node = self.zygotes[name].node
+            self.procs[name] = node
+            return
         proc = self._popen(name, self._commands[name][1])
         self.procs[name] = proc
-        self._started_at[name] = time.monotonic()
         self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: '
                           f'{name}{again}\n')
 
-    def _keep_standby(self, name: str) -> None:
-        """Start name's standby once its node has run STANDBY_AFTER_S (not at graph start-up, where
-        the spares' imports would slow every node down)."""
-        spec, cmd, _ = self._commands[name]
-        if (not self.graph.standby(spec)
-                or name in self.standbys and self.standbys[name].poll() is None):
-            return
-        started = self._started_at.get(name)
-        now = time.monotonic()
-        if started is None or now - started < self.STANDBY_AFTER_S \
-                or now - self._last_standby_at < self.STANDBY_STAGGER_S:
-            return
-        self._last_standby_at = now
-        self.standbys[name] = self._popen(name, standby_command(cmd), standby=True)
+    def _forked(self, name: str, node: ForkedNode) -> None:
+        """A zygote has forked name's node (called from its output pump)."""
+        self.ready_standbys.add(node.zygote.proc.pid)
+        again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
+        self.output.write(f'[INFO] [launch]: process started with pid [{node.pid}]: {name}{again}'
+                          f' (forked by its zygote, pid [{node.zygote.proc.pid}])\n')
 
     def _supervise(self) -> None:
         """Report each node's exit; respawn the nodes whose graph entry asks for it (after their
@@ -452,6 +450,8 @@ class Launcher:
                     why = ' (a start-up error: not respawned)' if respawn and code == 2 else ''
                     self.output.write(f'[{level}] [launch]: process {name} has finished '
                                       f'(exit code {code}){why}\n')
+                    if name in self.zygotes:   # no fork will follow
+                        self.zygotes[name].dismiss()
             for name, when in list(due.items()):
                 if time.monotonic() >= when and not self._stopping.is_set():
                     del due[name]
@@ -459,9 +459,6 @@ class Launcher:
                     self._reported.discard(name)
                     self._spawn(name)
             self._pending_respawns = len(due)
-            for name, proc in list(self.procs.items()):
-                if proc.poll() is None:
-                    self._keep_standby(name)
             self._stopping.wait(0.05)
 
     def cpu_seconds(self) -> dict[str, float]:
@@ -499,12 +496,13 @@ class Launcher:
         self._stopping.set()  # no respawn from here on
         if self._supervisor is not None:
             self._supervisor.join()
-        self._dismiss_standbys()
+        for zygote in self.zygotes.values():
+            zygote.dismiss()   # each ends once its node has (below)
         try:
             previous: tuple[str, float] | None = None
             stop_started = time.monotonic()
 
-            def note_exits(procs: dict[str, subprocess.Popen[str]]) -> None:
+            def note_exits(procs: dict[str, subprocess.Popen[str] | ForkedNode]) -> None:
                 for name, proc in procs.items():
                     if name not in self.stop_seconds and proc.poll() is not None:
                         self.stop_seconds[name] = round(time.monotonic() - stop_started, 2)
@@ -532,6 +530,7 @@ class Launcher:
                     time.sleep(0.02)
                 note_exits(alive)
                 previous = (signal.Signals(sig).name, grace)
+            self._end_zygotes()
             for t in self._threads:
                 t.join(timeout=1.0)
             self._params_dir.cleanup()   # the namespaced nodes' params files, read at start-up
@@ -540,7 +539,7 @@ class Launcher:
             for sig, handler in ignored.items():
                 signal.signal(sig, handler)
 
-    def _dump_stacks(self, alive: dict[str, subprocess.Popen[str]]) -> None:
+    def _dump_stacks(self, alive: dict[str, subprocess.Popen[str] | ForkedNode]) -> None:
         """Ask nodes that ignored SIGINT for their threads' stacks (node_tools.run registers
         faulthandler on SIGUSR1; they go to the node's output, i.e. this log), so the log says
         where each was stuck."""
@@ -549,16 +548,11 @@ class Launcher:
                 os.kill(proc.pid, signal.SIGUSR1)
         time.sleep(0.3)
 
-    def _dismiss_standbys(self) -> None:
-        """A standby ends at the end of its stdin (cli.cmd_run); SIGKILL for one that does not."""
-        standbys, self.standbys = self.standbys, {}
-        for proc in standbys.values():
-            try:
-                assert proc.stdin is not None
-                proc.stdin.close()
-            except (OSError, ValueError):
-                pass
-        for proc in standbys.values():
+    def _end_zygotes(self) -> None:
+        """Their nodes have ended: each zygote ends at the end of its stdin (dismissed in stop());
+        SIGKILL for one that does not."""
+        zygotes, self.zygotes = self.zygotes, {}
+        for proc in (z.proc for z in zygotes.values()):
             try:
                 proc.wait(2.0)
             except subprocess.TimeoutExpired:

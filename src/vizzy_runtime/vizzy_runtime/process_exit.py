@@ -29,13 +29,17 @@ LAUNCHER_PID_ENV = 'VIZZY_LAUNCHER_PID'
 _PR_SET_PDEATHSIG = 1
 
 
-def end_with_launcher(environ: dict[str, str] | None = None) -> bool:
-    """A node (or a standby) started by `vizzy launch` ends when its launcher does, however that
+def end_with_launcher(environ: dict[str, str] | None = None, parent: int | None = None) -> bool:
+    """A node (or a zygote) started by `vizzy launch` ends when its launcher does, however that
     ends (SIGKILL, the OOM killer, a crash): Linux then sends it SIGTERM (PR_SET_PDEATHSIG), which
     the node takes as it takes a Ctrl-C. If the launcher is already gone, SIGTERM now. Elsewhere
-    (no launcher, not Linux) nothing happens. True if armed."""
+    (no launcher, not Linux) nothing happens. parent: the process to end with instead of the
+    launcher (a node forked by its zygote: the zygote, which ends with the launcher; fork() clears
+    the setting, so the child arms it again). True if armed."""
     raw = (os.environ if environ is None else environ).get(LAUNCHER_PID_ENV, '')
-    if not raw.isdigit() or not sys.platform.startswith('linux'):
+    if parent is None and raw.isdigit():
+        parent = int(raw)
+    if parent is None or not sys.platform.startswith('linux'):
         return False
     try:
         libc = ctypes.CDLL(None, use_errno=True)
@@ -43,7 +47,7 @@ def end_with_launcher(environ: dict[str, str] | None = None) -> bool:
             return False
     except (OSError, AttributeError):
         return False
-    if os.getppid() != int(raw):       # it died before prctl: no signal will come
+    if os.getppid() != parent:       # it died before prctl: no signal will come
         os.kill(os.getpid(), signal.SIGTERM)
     return True
 
@@ -87,4 +91,4 @@ def run_then_exit(main: Callable[[], object]) -> NoReturn:
         os._exit(code)
 
 
-__all__ = ['exit_code', 'run_then_exit']
+__all__ = ['end_with_launcher', 'exit_code', 'run_then_exit']
