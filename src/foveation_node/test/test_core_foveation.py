@@ -173,6 +173,46 @@ def test_foveate_many_gives_foveate_s_images_exactly(dtype: type, channels: int)
         foveator.foveate_many(image, [(50, 50), (W + 5, 0)])
 
 
+@pytest.mark.parametrize('width, height, dtype, channels', [
+    (W, H, np.uint8, 3), (161, 97, np.uint8, 3), (161, 97, np.float32, 1), (97, 161, np.uint16, 0),
+    (333, 250, np.uint8, 4)])
+def test_foveate_many_regions_are_foveate_s_pixels_exactly_and_zero_elsewhere(
+        width: int, height: int, dtype: type, channels: int) -> None:
+    # a window model reads only the window around each pass-2 fixation: foveate only that
+    rng = np.random.default_rng(5)
+    shape = (height, width) if channels == 0 else (height, width, channels)
+    image: np.ndarray = (rng.random(shape) * 250).astype(dtype)
+    foveator = Foveator(width, height)
+    fixations = [(10.0, 12.0), (width - 1.0, height - 1.0), (width / 2 + 0.25, height / 3),
+                 (0.0, height - 1.0), (width / 3, 5.5)]
+    regions = [(-70, -68, 90, 92), (width - 60, height - 50, width + 100, height + 110),
+               (width // 2 - 40, height // 3 - 41, width // 2 + 41, height // 3 + 40),
+               (-3, -3, width + 3, height + 3), (width + 5, 0, width + 50, 40)]  # last: outside
+    many = foveator.foveate_many(image, fixations, regions)
+    for fixation, (x0, y0, x1, y1), out in zip(fixations, regions, many, strict=True):
+        assert out.shape == image.shape and out.dtype == image.dtype
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, width), min(y1, height)
+        full = foveator.foveate(image, fixation)
+        inside = np.zeros(shape[:2], bool)
+        inside[y0:y1, x0:x1] = True
+        assert np.array_equal(out[inside], full[inside]), fixation
+        assert not out[~inside].any()
+    with pytest.raises(ValueError, match='regions'):
+        foveator.foveate_many(image, fixations, regions[:2])
+
+
+def test_a_moving_fixation_gets_its_own_kernels() -> None:
+    # foveate keeps the last fixation's kernels H_k; foveate_many writes the same buffers
+    image: np.ndarray = np.clip(pink_noise(W, H, channels=3, seed=4), 0, 255).astype(np.uint8)
+    foveator = Foveator(W, H)
+    a, b = (40.5, 30.0), (W - 20.0, H - 10.0)
+    first = foveator.foveate(image, a).copy()
+    assert np.array_equal(foveator.foveate(image, b), Foveator(W, H).foveate(image, b))
+    assert np.array_equal(foveator.foveate(image, a), first)
+    foveator.foveate_many(image, [b])
+    assert np.array_equal(foveator.foveate(image, a), first)
+
+
 @pytest.mark.parametrize('bad, message', [
     (np.zeros((0, 10, 3), np.uint8), 'empty'),
     (np.zeros((H, W, 3), np.int32), 'dtype'),

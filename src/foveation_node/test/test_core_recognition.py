@@ -93,6 +93,29 @@ def test_classify_and_saliency_box_land_on_the_object(stub_model) -> None:
         assert x1 - x0 < 40 and y1 - y0 < 40
 
 
+def test_one_image_s_saliency_from_one_forward_pass_matches_the_batched_maps(stub_model) -> None:
+    # one image, several classes: one forward pass and a backward pass per class, the maps the
+    # batched pass over copies of the image gives (to float rounding), classify's probabilities
+    clf = Classifier(*stub_model)
+    img = _image_with_patches({(500, 120): (230, 30, 30), (150, 380): (30, 200, 30)})
+    forwards: list[int] = []
+    real_model = clf.model
+
+    def counted(x: torch.Tensor) -> torch.Tensor:
+        forwards.append(x.shape[0])
+        return real_model(x)
+
+    clf.model = counted
+    one = clf.saliency(img, [0, 1, 2])
+    assert forwards == [1]
+    batched = clf.saliency([img, img, img], [0, 1, 2])
+    np.testing.assert_allclose(one, batched, atol=1e-5)
+    probs, maps = clf.classify_with_saliency(img, None, lambda p: list(np.argsort(-p)[:2]))
+    np.testing.assert_array_equal(probs, clf.classify(img)[0])
+    np.testing.assert_allclose(maps, batched[np.argsort(-probs)[:2]], atol=1e-5)
+    assert clf.classify_with_saliency(img, None, lambda p: [])[1].shape == (0, 227, 227)
+
+
 def test_saliency_box_thresholds_relative_to_the_peak() -> None:
     m = np.zeros((10, 20))
     m[2, 3], m[7, 15], m[5, 9] = 1.0, 0.8, 0.5
@@ -129,9 +152,10 @@ def test_two_pass_foveates_at_the_box_centres_and_batches_pass_two(stub_model) -
     assert calls[0] == (319.5, 239.5) and len(calls) == 4
     assert [d.pass_index for d in result.first] == [0, 0, 0]
     assert calls[1:] == [d.centre for d in result.first]
-    # pass 1: 1 image, 3 saliency maps in one batch; pass 2: 3 images in one batch, then the
-    # 3 chosen labels' saliency in one batch
-    assert forwards == [1, 3, 3, 3]
+    # pass 1: one forward pass of its image gives its probabilities and (a backward pass per
+    # class) 3 saliency maps; pass 2: 3 images in one batch, then the 3 chosen labels'
+    # saliency in one batch
+    assert forwards == [1, 3, 3]
     labels = [d.label for d in result.second]
     assert len(labels) == len(set(labels)) == 3 and {d.pass_index for d in result.second} == {1}
     assert [d.score for d in result.second] == sorted((d.score for d in result.second),

@@ -16,6 +16,7 @@ from foveation_node.core.recognition import (
     grid_centres,
     grid_recognition,
     two_pass,
+    window_region,
 )
 
 W, H = 320, 240
@@ -91,10 +92,18 @@ def test_two_pass_given_its_first_image_and_a_batch_foveation_finds_the_same(
     plain = two_pass(clf, img, fixation, counted, top_k=2)
     assert len(calls) == 1 + 2                  # pass 1, then each of pass 1's two boxes
     calls.clear()
+    asked = []
+
+    def many(image: np.ndarray, fixations: list[tuple[float, float]],
+             regions: list[tuple[int, int, int, int]] | None = None) -> list[np.ndarray]:
+        asked.append(regions)
+        return foveator.foveate_many(image, fixations, regions)
+
     shared = two_pass(clf, img, fixation, counted, top_k=2,
-                      first_image=foveator.foveate(img, fixation),
-                      foveate_many=foveator.foveate_many)
+                      first_image=foveator.foveate(img, fixation), foveate_many=many)
     assert calls == []                          # nothing foveated one image at a time
+    # only the window each pass-2 image is classified in is foveated
+    assert asked == [[window_region(d.centre, 64) for d in plain.first]]
     assert shared.first == plain.first and shared.second == plain.second
     np.testing.assert_array_equal(shared.probs_second, plain.probs_second)
     with pytest.raises(ValueError, match='first_image'):

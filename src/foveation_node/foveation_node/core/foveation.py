@@ -52,6 +52,7 @@ DEFAULT_LEVELS: Final[int] = 5
 DEFAULT_F0: Final[float] = 100.0
 
 Fixation = tuple[float, float]
+Region = tuple[int, int, int, int]                  # x0, y0, x1, y1 (px; x1, y1 exclusive)
 
 
 def gaussian_sigmas(sigma_1: float, levels: int) -> np.ndarray:
@@ -212,7 +213,7 @@ class Foveator:
             raise ValueError(f'out must be {image.shape} {image.dtype}, '
                              f'got {out.shape} {out.dtype}')
         buf = self._buffers(channels)
-        kernels = self._kernels(buf, channels, u0, v0)
+        kernels = self._fixation_kernels(buf, channels, u0, v0)
         pyramid = self._pyramid(self._plane(image), buf)
         top = self.levels - 1
         acc = pyramid[-1]
@@ -221,8 +222,9 @@ class Foveator:
             expanded = cv2.pyrUp(pyramid[k + 1], dst=buf.expanded[k], dstsize=size)
             lap = cv2.subtract(pyramid[k], expanded, dst=buf.lap[k])             # L_k, Eq. 2.6
             lap = cv2.multiply(lap, kernels[k], dst=lap)                        # F_k, Eq. 2.13
-            # coarse to fine: F^(k) = pyrUp(F^(k+1)) + F_k, and pyrUp(g_K) is `expanded` at K-1
-            base = expanded if k == top else cv2.pyrUp(acc, dst=buf.up[k], dstsize=size)
+            # coarse to fine: F^(k) = pyrUp(F^(k+1)) + F_k, and pyrUp(g_K) is `expanded` at K-1;
+            # below the top, expanded (g_(k+1) brought up) is spent: pyrUp(F^(k+1)) goes there
+            base = expanded if k == top else cv2.pyrUp(acc, dst=expanded, dstsize=size)
             if k > 0:
                 acc = cv2.add(base, lap, dst=base)
         plane = out.reshape(image.shape[:2]) if channels == 1 else out
@@ -231,16 +233,26 @@ class Foveator:
             np.copyto(plane, result)
         return out
 
-    def foveate_many(self, image: np.ndarray, fixations: list[Fixation]) -> list[np.ndarray]:
+    def foveate_many(self, image: np.ndarray, fixations: list[Fixation],
+                     regions: list[Region] | None = None) -> list[np.ndarray]:
         """[foveate(image, f) for f in fixations], the same images, with the Gaussian pyramid
         and the Laplacian levels built once: they do not depend on the fixation, only the
-        kernels H_k and the coarse-to-fine sum do (about half of a foveation's cost)."""
+        kernels H_k and the coarse-to-fine sum do (about half of a foveation's cost).
+
+        regions: one (x0, y0, x1, y1) per fixation (px, x1 and y1 exclusive; clipped to the
+        image): only that rectangle of each image is computed, bit-identical to foveate's, and
+        the rest is 0. The coarse-to-fine sum then runs on each level's part that the rectangle
+        depends on (pyrUp reads a pixel's neighbours: a margin of 2 px a level), e.g. the
+        window a window model classifies: a 160 px square is a twelfth of a 640x480 frame."""
         height, width, channels = check_image(image)
         self._check_shape(width, height)
         points = [check_fixation(f, width, height) for f in fixations]
+        if regions is not None and len(regions) != len(points):
+            raise ValueError(f'{len(regions)} regions for {len(points)} fixations')
         if not points:
             return []
         buf = self._buffers(channels)
+        buf.kernels_for = None                  # _kernels below overwrites foveate's
         pyramid = self._pyramid(self._plane(image), buf)
         top = self.levels - 1
         expanded_top = cv2.pyrUp(pyramid[top + 1], dstsize=self.level_sizes[top])
@@ -248,7 +260,11 @@ class Foveator:
             pyramid[k + 1], dstsize=self.level_sizes[k])) for k in range(self.levels)]
         depth = _CV_DEPTH[image.dtype.type]
         out = []
-        for u0, v0 in points:
+        for i, (u0, v0) in enumerate(points):
+            if regions is not None:
+                out.append(self._foveate_region(image, laps, expanded_top, (u0, v0),
+                                                regions[i], depth, channels))
+                continue
             kernels = self._kernels(buf, channels, u0, v0)
             acc = expanded_top
             for k in range(top, -1, -1):
@@ -260,6 +276,65 @@ class Foveator:
             result = cv2.add(base, lap, dtype=depth)
             out.append(result.reshape(image.shape))
         return out
+
+    def _level_regions(self, region: Region) -> list[tuple[int, int, int, int]] | None:
+        """The part (x0, y0, x1, y1) of each level 0..K-1 that the level-0 rectangle's foveated
+        values depend on (None: the rectangle misses the image). pyrUp's output pixel j reads
+        input pixels j // 2 - 1 .. j // 2 + 1; one more pixel each side is margin."""
+        x0, y0 = max(int(region[0]), 0), max(int(region[1]), 0)
+        x1, y1 = min(int(region[2]), self.width), min(int(region[3]), self.height)
+        if x0 >= x1 or y0 >= y1:
+            return None
+        out = [(x0, y0, x1, y1)]
+        for k in range(1, self.levels):
+            w, h = self.level_sizes[k]
+            x0, y0, x1, y1 = out[-1]
+            out.append((max(x0 // 2 - 2, 0), max(y0 // 2 - 2, 0),
+                        min((x1 - 1) // 2 + 3, w), min((y1 - 1) // 2 + 3, h)))
+        return out
+
+    def _foveate_region(self, image: np.ndarray, laps: list[np.ndarray],
+                        expanded_top: np.ndarray, fixation: tuple[float, float], region: Region,
+                        depth: int, channels: int) -> np.ndarray:
+        """foveate(image, fixation) on region only (foveate_many's regions), 0 elsewhere."""
+        out = np.zeros_like(image)
+        parts = self._level_regions(region)
+        if parts is None:
+            return out
+        profiles = self._profiles(*fixation)
+        top = self.levels - 1
+        acc = expanded_top
+        for k in range(top, -1, -1):
+            x0, y0, x1, y1 = parts[k]
+            col, row = profiles[k]
+            plane = np.multiply(col[y0:y1, None], row[None, x0:x1])
+            kernel = plane if channels == 1 else cv2.merge([plane] * channels)
+            lap = cv2.multiply(laps[k][y0:y1, x0:x1], kernel)                  # F_k, Eq. 2.13
+            if k == top:
+                base = expanded_top[y0:y1, x0:x1]
+            else:
+                # pyrUp of the level above's part covers level k from 2 * its x0, y0; it ends
+                # one pixel short of twice its size where the level ends at an odd size
+                ax0, ay0, ax1, ay1 = parts[k + 1]
+                w, h = self.level_sizes[k]
+                dw = 2 * (ax1 - ax0) - (2 * ax1 > w)
+                dh = 2 * (ay1 - ay0) - (2 * ay1 > h)
+                up = cv2.pyrUp(acc, dstsize=(dw, dh))
+                base = up[y0 - 2 * ay0:y1 - 2 * ay0, x0 - 2 * ax0:x1 - 2 * ax0]
+            if k > 0:
+                acc = cv2.add(base, lap)
+        x0, y0, x1, y1 = parts[0]
+        result = cv2.add(base, lap, dtype=depth)
+        out[y0:y1, x0:x1] = result.reshape(out[y0:y1, x0:x1].shape)
+        return out
+
+    def _fixation_kernels(self, buf: _Buffers, channels: int, u0: float,
+                          v0: float) -> list[np.ndarray]:
+        """_kernels, kept for the next frame: a node's fixation rarely moves between frames."""
+        if buf.kernels_for != (u0, v0):
+            buf.kernels = self._kernels(buf, channels, u0, v0)
+            buf.kernels_for = (u0, v0)
+        return buf.kernels
 
     def _kernels(self, buf: _Buffers, channels: int, u0: float, v0: float) -> list[np.ndarray]:
         """H_k on each level's grid (Eq. 2.3), in buf's kernel arrays, for the fixation."""
@@ -350,6 +425,8 @@ class _Buffers:
         self.kernel = [level(k) for k in range(count)]
         self.kernel_plane = [np.empty(sizes[k][::-1], np.float32) for k in range(count)]
         self.canvas: np.ndarray | None = None   # H_0 on a (2h - 1) x (2w - 1) canvas, built lazily
+        self.kernels: list[np.ndarray] = []      # H_k at kernels_for (Foveator._fixation_kernels)
+        self.kernels_for: tuple[float, float] | None = None
 
 
 # cv2.add's dtype argument: integer outputs are rounded and saturated

@@ -40,6 +40,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -54,7 +55,15 @@ BACKGROUND_LABEL = 'background'                      # the reject class: no obje
 
 Box = tuple[int, int, int, int]                      # (x0, y0, x1, y1), inclusive, image px
 Foveate = Callable[[np.ndarray, tuple[float, float]], np.ndarray]
-FoveateMany = Callable[[np.ndarray, list[tuple[float, float]]], list[np.ndarray]]
+Region = tuple[int, int, int, int]                   # (x0, y0, x1, y1), x1 and y1 exclusive
+
+
+class FoveateMany(Protocol):
+    """foveate(image, f) for each fixation f; with regions (one per fixation), only each
+    region need be right (`Foveator.foveate_many`)."""
+
+    def __call__(self, image: np.ndarray, fixations: list[tuple[float, float]],
+                 regions: list[Region] | None = None) -> list[np.ndarray]: ...
 
 
 class ModelError(ValueError):
@@ -83,6 +92,13 @@ class Preprocessing:
 def window_origin(centre: tuple[float, float], window: int) -> tuple[int, int]:
     """Top-left pixel (x, y) of the window x window square centred at centre (image px)."""
     return (int(round(centre[0])) - window // 2, int(round(centre[1])) - window // 2)
+
+
+def window_region(centre: tuple[float, float], window: int) -> Region:
+    """The window x window square centred at centre as (x0, y0, x1, y1), x1 and y1 exclusive:
+    the pixels crop_window reads (it mirrors the part outside the image from inside this)."""
+    x0, y0 = window_origin(centre, window)
+    return (x0, y0, x0 + window, y0 + window)
 
 
 def crop_window(image: np.ndarray, centre: tuple[float, float], window: int) -> np.ndarray:
@@ -284,14 +300,15 @@ class Classifier:
         """(N, h, w) class saliency maps (Eqs. 2.19-2.20) in network-input pixels, in [0, 1].
 
         Map i is |d S_c / d I| of class classes[i] on image i (one image: the same image for
-        every class), max over colour channels, divided by its maximum. One batched backward
-        pass: the sum of the chosen scores, each depending on its own copy of the input only.
+        every class), max over colour channels, divided by its maximum. Several images: one
+        batched backward pass of the sum of the chosen scores, each depending on its own image
+        only. One image: one forward pass and a backward pass per class (the same maps; the
+        forward pass of N copies of the image cost more than the N - 1 backward passes saved).
         """
         if isinstance(images, np.ndarray) and images.ndim == 3 and (
                 centres is None or len(centres) == 1):
-            x = self.preprocess(images, centres).expand(len(classes), -1, -1, -1).clone()
-        else:
-            x = self.preprocess(images, centres)
+            return self._saliency_of_one(self.preprocess(images, centres), classes)[1]
+        x = self.preprocess(images, centres)
         if x.shape[0] != len(classes):
             raise ValueError(f'{x.shape[0]} images for {len(classes)} classes')
         x.requires_grad_(True)
@@ -300,9 +317,33 @@ class Classifier:
             idx = torch.as_tensor(list(classes), dtype=torch.long)
             scores.gather(1, idx[:, None]).sum().backward()
         assert x.grad is not None                                     # set by backward()
-        grad = x.grad.abs().amax(dim=1)                               # (N, h, w)
-        peak = grad.flatten(1).amax(dim=1).clamp_min(1e-12)
-        return (grad / peak[:, None, None]).numpy()
+        return _normalised(x.grad.abs().amax(dim=1))                  # (N, h, w)
+
+    def classify_with_saliency(
+            self, image: np.ndarray, centre: tuple[float, float] | None,
+            choose: Callable[[np.ndarray], Sequence[int]]) -> tuple[np.ndarray, np.ndarray]:
+        """classify(image, [centre])[0] and the saliency maps of the classes choose(probs)
+        picks from them, (len, h, w), from one forward pass (what pass 1 of Fig. 2.5 needs)."""
+        return self._saliency_of_one(self.preprocess(image, None if centre is None
+                                                     else [centre]), choose)
+
+    def _saliency_of_one(
+            self, x: torch.Tensor,
+            classes: Sequence[int] | Callable[[np.ndarray], Sequence[int]]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(probabilities, maps) of one preprocessed image x (1, 3, h, w): the classes given,
+        or chosen from the probabilities; one forward pass, one backward pass per class."""
+        x = x.detach().requires_grad_(True)
+        with torch.enable_grad():
+            scores = self.model(x)
+            probs = torch.softmax(scores.detach(), dim=1).numpy()[0]
+            chosen = list(classes(probs) if callable(classes) else classes)
+            grads = [torch.autograd.grad(scores[0, int(c)], x, retain_graph=i < len(chosen) - 1)[0]
+                     for i, c in enumerate(chosen)]
+        if not grads:
+            h, w = x.shape[2:]
+            return probs, np.zeros((0, h, w), np.float32)
+        return probs, _normalised(torch.cat(grads).abs().amax(dim=1))
 
     def box_to_image(self, box: Box, width: int, height: int,
                      centre: tuple[float, float] | None = None) -> Box:
@@ -322,6 +363,12 @@ class Classifier:
                 min(max(oy + int(math.floor(y0 * sy)), 0), height - 1),
                 min(max(ox + int(math.ceil((x1 + 1) * sx)) - 1, 0), width - 1),
                 min(max(oy + int(math.ceil((y1 + 1) * sy)) - 1, 0), height - 1))
+
+
+def _normalised(grad: torch.Tensor) -> np.ndarray:
+    """(N, h, w) gradient magnitudes, each map divided by its maximum."""
+    peak = grad.flatten(1).amax(dim=1).clamp_min(1e-12)
+    return (grad / peak[:, None, None]).numpy()
 
 
 def saliency_box(saliency: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> Box:
@@ -345,10 +392,18 @@ def localise(classifier: Classifier, image: np.ndarray, classes: Sequence[int],
     one for all)."""
     maps = classifier.saliency(image if net_input is None else net_input, classes, centres)
     h, w = image.shape[:2]
+    return boxes_of(classifier, maps, w, h, threshold, centres)
+
+
+def boxes_of(classifier: Classifier, maps: np.ndarray, width: int, height: int,
+             threshold: float = DEFAULT_THRESHOLD,
+             centres: Sequence[tuple[float, float]] | None = None) -> list[Box]:
+    """The saliency boxes of maps (network-input pixels) in a width x height image's pixels
+    (a window model: in the windows at centres, one per map or one for all)."""
     per = list(centres) if centres is not None else [None]
     if len(per) == 1:
         per = per * len(maps)
-    return [classifier.box_to_image(saliency_box(m, threshold), w, h, c)
+    return [classifier.box_to_image(saliency_box(m, threshold), width, height, c)
             for m, c in zip(maps, per, strict=True)]
 
 
@@ -394,8 +449,9 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
     foveate(image, (u, v)) gives the image foveated at (u, v) (same size), e.g.
     `Foveator.foveate`; pass lambda img, fix: img for a uniform-resolution sensor.
     first_image: foveate(image, fixation) when the caller has it already (a node foveates
-    every frame at the fixation anyway); foveate_many(image, fixations): the pass-2 images at
-    once (`Foveator.foveate_many`, one pyramid for all), else foveate one by one.
+    every frame at the fixation anyway); foveate_many(image, fixations[, regions]): the pass-2
+    images at once (`Foveator.foveate_many`, one pyramid for all), else foveate one by one; a
+    window model asks it for each image's window only (window_region), all the network sees.
     localise_second: also compute each pass-2 label's box (one more batched backward pass).
     With a reject class (Classifier.reject_class), pass 1 takes the top-k object classes and
     pass 2 keeps only labels that beat background (merge_second_pass): `second` may be empty.
@@ -409,11 +465,15 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
         first_image = foveate(image, fixation)
     elif first_image.shape != image.shape:
         raise ValueError(f'first_image is {first_image.shape}, the image {image.shape}')
-    probs1 = classifier.classify(first_image, [fixation])[0]
-    classes1 = [int(c) for c in np.argsort(-probs1) if c != reject][:k]   # never background
+    # the top-k object classes (never background) and their saliency, from one forward pass
+    def top_classes(probs: np.ndarray) -> list[int]:
+        return [int(c) for c in np.argsort(-probs) if c != reject][:k]
+
+    probs1, maps1 = classifier.classify_with_saliency(first_image, fixation, top_classes)
+    classes1 = top_classes(probs1)
     if not classes1:                                # a model that knows background only
         return TwoPassResult([], [], probs1, np.zeros((0, classifier.num_classes)))
-    boxes1 = localise(classifier, first_image, classes1, threshold, centres=[fixation])
+    boxes1 = boxes_of(classifier, maps1, image.shape[1], image.shape[0], threshold, [fixation])
     looked = [Detection(c, classifier.labels[c], float(probs1[c]), b, fixation, 0)
               for c, b in zip(classes1, boxes1, strict=True)]
     # pass 2 looks at every top-k box; pass 1 reports only what beats background where it looked
@@ -421,8 +481,13 @@ def two_pass(classifier: Classifier, image: np.ndarray, fixation: tuple[float, f
              else [d for d in looked if probs1[d.class_id] > probs1[reject]])
 
     centres = [d.centre for d in looked]
-    second_images = (foveate_many(image, centres) if foveate_many is not None
-                     else [foveate(image, c) for c in centres])
+    if foveate_many is None:
+        second_images = [foveate(image, c) for c in centres]
+    elif classifier.window:        # the network sees only the window: foveate only that
+        second_images = foveate_many(image, centres,
+                                     [window_region(c, classifier.window) for c in centres])
+    else:
+        second_images = foveate_many(image, centres)
     probs2 = classifier.classify(second_images, centres)
     chosen = merge_second_pass(probs2, k, reject)
     if localise_second and chosen:
@@ -495,5 +560,6 @@ __all__ = ['BACKGROUND_LABEL', 'Box', 'Classifier', 'DEFAULT_INPUT_SIZE', 'DEFAU
            'DEFAULT_TOP_K', 'Detection', 'IMAGENET_MEAN', 'IMAGENET_STD', 'ModelError',
            'Preprocessing',
            'TwoPassResult', 'crop_window', 'grid_centres', 'grid_recognition', 'load_labels',
-           'load_preprocessing', 'localise', 'merge_second_pass', 'preprocessing_path_for',
-           'saccade_target', 'saliency_box', 'two_pass', 'window_origin']
+           'load_preprocessing', 'localise', 'boxes_of', 'window_region', 'merge_second_pass',
+           'preprocessing_path_for', 'saccade_target', 'saliency_box', 'two_pass',
+           'window_origin']
