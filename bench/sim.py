@@ -9,7 +9,10 @@ This process subscribes like any consumer would and measures, over WINDOW_S seco
                         /vizzy/joint_commands -> the first /joint_states (100 Hz) showing the
                         joint 1 mrad (0.06 deg) away from where it was; includes DDS both ways
                         and up to one joint_states period (10 ms)
-Also sim_cpu_percent (the sim process, of one core) and the machine's core count.
+Also sim_cpu_percent (the sim process, of one core), sim_cpu_ms_per_pair (its CPU over the
+stereo pairs received: physics, RGB-D and the rest included), the sim's peak sim_rss_mb and
+sim_pss_mb over the window (/proc/<pid>/status, smaps_rollup; issue 27) and the machine's core
+count.
 
     .venv/bin/python bench/sim.py [--scene tabletop] [--window 10] [--stereo-hz 30]
     # last line: one JSON object
@@ -40,6 +43,16 @@ _RESULT: dict[str, object] = {}
 def _cpu_seconds(pid: int) -> float:
     fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _memory_mb(pid: int) -> tuple[float, float]:
+    """(RSS, PSS) of a process [MB]."""
+    rss = next(int(line.split()[1]) for line in Path(f'/proc/{pid}/status').read_text().splitlines()
+               if line.startswith('VmRSS:'))
+    pss = next(int(line.split()[1]) for line in
+               Path(f'/proc/{pid}/smaps_rollup').read_text().splitlines()
+               if line.startswith('Pss:'))
+    return rss / 1024.0, pss / 1024.0
 
 
 def main() -> int:
@@ -108,10 +121,17 @@ def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
     node.create_subscription(JointState, '/joint_states', on_joints, 100)
     commands = node.create_publisher(JointState, '/vizzy/joint_commands', 10)
 
-    def spin_for(seconds: float) -> None:
+    peak = {'rss': 0.0, 'pss': 0.0}
+
+    def spin_for(seconds: float, memory: bool = False) -> None:
         end = time.monotonic() + seconds
+        next_sample = 0.0
         while time.monotonic() < end:
             rclpy.spin_once(node, timeout_sec=0.01)
+            if memory and time.monotonic() >= next_sample:      # twice a second
+                next_sample = time.monotonic() + 0.5
+                rss, pss = _memory_mb(sim.pid)
+                peak['rss'], peak['pss'] = max(peak['rss'], rss), max(peak['pss'], pss)
 
     print(f'bench/sim: starting the sim ({ns.scene}) ...', file=sys.stderr, flush=True)
     ok = wait_until(lambda: (rclpy.spin_once(node, timeout_sec=0.01) or True) and
@@ -125,7 +145,7 @@ def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
     clock.clear()
     cpu0, wall0 = _cpu_seconds(sim.pid), time.monotonic()
     print(f'bench/sim: measuring for {ns.window:g} s ...', file=sys.stderr, flush=True)
-    spin_for(ns.window)
+    spin_for(ns.window, memory=True)
     wall = time.monotonic() - wall0
     cpu = _cpu_seconds(sim.pid) - cpu0
     pairs = len(set(stamps['left']) & set(stamps['right']))
@@ -160,6 +180,9 @@ def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
         'requested_stereo_hz': ns.stereo_hz,
         'requested_rgbd_hz': RGBD_HZ,
         'sim_cpu_percent': round(100.0 * cpu / wall, 1),
+        'sim_cpu_ms_per_pair': round(1e3 * cpu / pairs, 2) if pairs else None,
+        'sim_rss_mb': round(peak['rss'], 1),
+        'sim_pss_mb': round(peak['pss'], 1),
         'cpu_count': os.cpu_count(),
         'scene': ns.scene,
         'window_s': ns.window,

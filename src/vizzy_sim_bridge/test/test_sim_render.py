@@ -158,3 +158,24 @@ def test_depth_is_the_distance_along_the_optical_axis(backend) -> None:
     assert (corner['x'], corner['y'], corner['z']) == pytest.approx(
         (-half_w, -1.5 * 239.5 / k[1, 1], 1.5), abs=3e-3)
     assert math.degrees(2 * math.atan(320 / k[0, 0])) == pytest.approx(58.0)
+
+
+def test_depth_conversion_and_scene_size(backend) -> None:
+    """Depth is d / (raw + c) of the reversed-Z buffer, to the bit (issue 27: computed in one
+    float64 buffer), and the visual scene is sized to the model (every geom and site fits; 4000
+    geoms by default were ~2.5 MB for the tabletop's 47)."""
+    sim = HeadSimulation(build_scene('tabletop', 0), {'neck_tilt_joint': 0.3},
+                         eye=CameraSpec(160, 120, 85.4), rgbd=CameraSpec(160, 120, 58.0))
+    data = mujoco.MjData(sim.model)
+    sim.snapshot_into(data)
+    mujoco.mj_forward(sim.model, data)
+    with render_mod.CameraRenderer(sim.model, 160, 120, backend) as renderer:
+        _, depth = renderer.render(data, 'rgbd_camera', depth=True)
+        raw = renderer._depth[:160 * 120].reshape(120, 160)[::-1].astype(np.float64)
+        with np.errstate(divide='ignore'):
+            ref = (renderer._d / (raw + renderer._c)).astype(np.float32)
+        ref[raw <= 0.0] = np.inf
+        np.testing.assert_array_equal(depth, ref)
+        scene = renderer._scene
+        assert 0 < scene.ngeom < scene.maxgeom            # nothing dropped for want of room
+        assert scene.maxgeom <= 4 * (sim.model.ngeom + sim.model.nsite) + 200

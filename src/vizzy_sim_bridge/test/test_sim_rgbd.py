@@ -60,3 +60,17 @@ def test_cloud_is_organized_pinhole_back_projection() -> None:
     np.testing.assert_array_equal(unpack_rgb(cloud['rgb'])[0, 0], [255, 0, 0])
     with pytest.raises(ValueError):
         DepthProjector(k, 64, 48).cloud(depth[:10], rgb)
+
+
+def test_noise_is_the_model_to_the_bit() -> None:
+    # issue 27: computed in one temporary; the same numbers as zv + (c zv^2) n, n ~ N(0, 1)
+    depth = np.random.default_rng(3).uniform(0.3, 4.0, (48, 64)).astype(np.float32)
+    depth[5, :7] = np.inf
+    out = noisy_depth(depth, np.random.default_rng(4))
+    hit = np.isfinite(depth)
+    zv = depth[hit]
+    n = np.random.default_rng(4).standard_normal(zv.shape, dtype=np.float32)
+    ref = depth.copy()
+    ref[hit] = zv + (XTION_SIGMA_COEFFICIENT * zv * zv) * n
+    ref[~hit | (ref < 0.5) | (ref > 3.5)] = np.nan
+    np.testing.assert_array_equal(out, ref)

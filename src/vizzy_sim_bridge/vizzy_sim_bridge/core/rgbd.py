@@ -42,7 +42,12 @@ def noisy_depth(depth: np.ndarray, rng: np.random.Generator | None,
     hit = np.isfinite(z)
     if rng is not None and coefficient > 0.0:
         zv = z[hit]
-        z[hit] = zv + (coefficient * zv * zv) * rng.standard_normal(zv.shape, dtype=np.float32)
+        # zv + (c zv zv) n, in one temporary (same operations and order: the same bits)
+        noise = coefficient * zv
+        noise *= zv
+        noise *= rng.standard_normal(zv.shape, dtype=np.float32)
+        noise += zv
+        z[hit] = noise
     z[~hit | (z < min_range) | (z > max_range)] = np.nan   # the sensor's range, after the noise
     return z
 
