@@ -169,3 +169,18 @@ def test_clusters_go_out_as_table_aligned_boxes() -> None:
     assert np.all(np.abs(inside) <= size / 2 + 1e-9)
     assert [(h.hypothesis.class_id, h.hypothesis.score) for h in d.results] == [('cylinder', 0.25)]
     assert node.cluster_array(header, None).detections == []   # a refused cloud: none
+
+
+def test_markers_are_built_only_while_something_subscribes(monkeypatch) -> None:
+    """The MarkerArray is for viewers: without a subscriber it is not built (issue 27); the
+    CylinderArray always goes out."""
+    from vizzy_runtime.ros import message
+    built: list[int] = []
+    real = node.marker_array
+    monkeypatch.setattr(node, 'marker_array', lambda *args: built.append(1) or real(*args))
+    with node_under_test(node.CylinderDetectorNode) as detector:
+        detector._publish(message('std_msgs/msg/Header')(frame_id='rgbd'), [])
+        assert built == []
+        monkeypatch.setattr(node, 'has_subscribers', lambda pub: pub is detector._marker_pub)
+        detector._publish(message('std_msgs/msg/Header')(frame_id='rgbd'), [])
+        assert built == [1]

@@ -9,4 +9,5 @@ numpy/scipy/Open3D only, fully typed, no ROS imports:
 - pipeline: segmentation then one fit per cluster in the table frame.
 - synthetic: cylinders with caps and noise (section 4.4.1) for tests, experiments and benchmarks.
 - scene: a ray-cast 640x480 organized tabletop frame (cylinders and distractors).
+- open3d_lib: Open3D's compiled module without the package's visualization start-up.
 """

@@ -18,15 +18,20 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import open3d as o3d
 from numpy.typing import NDArray
 
+from . import open3d_lib
 from .accumulator import TABLE_4_1
 from .fitting import Cylinder, FitParams, fit_cylinder, make_directions, rotation_to_z, vec3
 from .segmentation import Cluster, SegmentParams, segment_tabletop
+
+if TYPE_CHECKING:
+    import open3d as o3d
+else:     # the compiled module alone: not the package's visualization start-up (open3d_lib)
+    o3d = open3d_lib.load()
 
 Array = NDArray[np.float64]
 

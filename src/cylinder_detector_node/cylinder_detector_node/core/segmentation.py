@@ -37,13 +37,19 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import open3d as o3d
 from numpy.typing import NDArray
 from scipy import ndimage
 from scipy.spatial import cKDTree
+
+from . import open3d_lib
+
+if TYPE_CHECKING:
+    import open3d as o3d
+else:     # the compiled module alone: not the package's visualization start-up (open3d_lib)
+    o3d = open3d_lib.load()
 
 Array = NDArray[np.float64]
 
