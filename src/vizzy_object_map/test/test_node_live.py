@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from vizzy_object_map import node as map_node
+from vizzy_runtime.convert import array_to_pointcloud2
 from vizzy_runtime.ros import Context, Node, Parameter, message, qos_profile_latched
 from vizzy_runtime.testing import (
     check_node_parameters,
@@ -50,6 +51,7 @@ Detection3D = message('vision_msgs/msg/Detection3D')
 Detection3DArray = message('vision_msgs/msg/Detection3DArray')
 MarkerArray = message('visualization_msgs/msg/MarkerArray')
 MapObjectArray = message('active_vision_msgs/msg/MapObjectArray')
+PointCloud2 = message('sensor_msgs/msg/PointCloud2')
 GazeCommand = message('active_vision_msgs/msg/GazeCommand')
 GazeState = message('active_vision_msgs/msg/GazeState')
 
@@ -273,3 +275,47 @@ def test_node_parameters(context) -> None:
         assert mapper.map.config.min_recognitions == 5
     finally:
         mapper.destroy_node()
+
+
+def test_the_stereo_cloud_is_subscribed_only_while_stereo_depth_is_on(graph) -> None:
+    """Off (the graph's setting), the map does not subscribe to /stereo/points: each 1.5 MB cloud
+    would cost its transfer only to be dropped (issue 27). On, its clouds are read again."""
+    peers, mapper, executor = graph
+    stereo = peers.create_publisher(PointCloud2, mapper._topics[map_node.STEREO_TOPIC], 2)
+    peers.publish_poses()
+    assert wait_until(lambda: mapper.poses.pose_at(CAMERA, 0.0) is not None, TIMEOUT,
+                      spin=executor)
+    assert all(r.successful for r in mapper.set_parameters(
+        [Parameter('use_stereo_depth', value=True)]))
+    assert wait_until(lambda: stereo.get_subscription_count() > 0, TIMEOUT, spin=executor)
+    cloud = np.zeros(3, dtype=[('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
+    cloud['z'] = 1.0
+    msg = array_to_pointcloud2(cloud)
+    msg.header.frame_id, msg.header.stamp = CAMERA, peers.stamp()
+    stereo.publish(msg)
+    assert wait_until(lambda: mapper._stereo is not None, TIMEOUT, spin=executor)
+    assert all(r.successful for r in mapper.set_parameters(
+        [Parameter('use_stereo_depth', value=False)]))
+    assert wait_until(lambda: stereo.get_subscription_count() == 0, TIMEOUT, spin=executor)
+    assert mapper._stereo is None
+
+
+def test_markers_are_built_only_while_something_subscribes(context, monkeypatch) -> None:
+    """A MarkerArray is for viewers: without a subscriber the map does not build it (issue 27);
+    the other two outputs go out at every publication."""
+    built: list[int] = []
+    real = map_node.marker_array
+    monkeypatch.setattr(map_node, 'marker_array',
+                        lambda *args: built.append(1) or real(*args))
+    mapper = map_node.ObjectMapNode(context=context)
+    viewer = Node('marker_viewer', context=context, start_parameter_services=False)
+    got: list[Any] = []
+    with spinning(context, [mapper, viewer], lambda: True, TIMEOUT) as executor:
+        mapper.publish_map()
+        mapper.publish_map()
+        assert mapper.publications == 2 and built == []
+        viewer.create_subscription(MarkerArray, mapper._markers_pub.topic_name, got.append,
+                                   qos_profile_latched)
+        assert wait_until(lambda: mapper._markers_pub.get_subscription_count() > 0, TIMEOUT,
+                          spin=executor)
+        assert wait_until(lambda: built and got, TIMEOUT, spin=executor)   # the timer's turn

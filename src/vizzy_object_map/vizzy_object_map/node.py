@@ -14,7 +14,9 @@ Subscribes
                             surface (cylinder_detector), boxes in the cloud's frame
   /cylinders                active_vision_msgs/CylinderArray: fitted cylinders, cloud frame
   /stereo/points            sensor_msgs/PointCloud2 (x y z, left optical frame): depth for a
-                            recognition that falls on no known object (use_stereo_depth)
+                            recognition that falls on no known object; subscribed only while
+                            use_stereo_depth is on (off in the graph: a 1.5 MB cloud a second
+                            the map would receive and drop)
   /tf, /tf_static           poses of the sensors at each input's stamp (tf.FramePoses)
   /gaze/state               active_vision_msgs/GazeState: whether the eyes move, whose look
                             is served, where they fixate
@@ -30,7 +32,8 @@ merging) and, every publish_period_s of the node's clock (sim time in the graph)
                     says for unknown)
   /objects/markers  visualization_msgs/MarkerArray: DELETEALL, then a box per established
                     object (green when confirmed, grey while unnamed) and its label with share
-                    and observation count
+                    and observation count; built only while something subscribes (a viewer:
+                    it gets the current markers within publish_period_s)
   /objects/map      active_vision_msgs/MapObjectArray: every object, with what Detection3D has
                     no field for (observation counts, first and last seen, established,
                     confirmed)
@@ -42,7 +45,8 @@ merging) and, every publish_period_s of the node's clock (sim time in the graph)
                     dwell_s on each settled fixation for the recogniser, max_looks per object)
 
 The three outputs are reliable and transient local (depth 1), like a map: a late subscriber gets
-the current map at once.
+the current map at once (the markers: the last ones built, then the current ones at the next
+publication).
 
 Refused inputs (vizzy_runtime.input_health.InputHealth): 'no camera_info' (detections before a
 usable K, or of another size), 'unusable K', 'no frame_id', 'no pose' (tf has no chain from
@@ -75,7 +79,14 @@ from vizzy_object_map.messages import (
 )
 from vizzy_runtime.convert import ConversionError, camera_k, pointcloud2_to_array, stamp_seconds
 from vizzy_runtime.input_health import InputHealth
-from vizzy_runtime.node_tools import Param, declare_parameters, guarded, main_for, replace_timer
+from vizzy_runtime.node_tools import (
+    Param,
+    declare_parameters,
+    guarded,
+    has_subscribers,
+    main_for,
+    replace_timer,
+)
 from vizzy_runtime.ros import Node, message, qos_profile_latched
 from vizzy_runtime.tf import FramePoses, TransformBuffer, TransformListener
 
@@ -223,12 +234,14 @@ class ObjectMapNode(Node):
                  self._on_detections, 10),
                 (CameraInfo, CAMERA_INFO_TOPIC, 'a camera_info', self._on_camera_info, 10),
                 (Detection3DArray, CLUSTERS_TOPIC, 'a cluster array', self._on_clusters, 10),
-                (CylinderArray, CYLINDERS_TOPIC, 'a cylinder array', self._on_cylinders, 10),
-                (PointCloud2, STEREO_TOPIC, 'a cloud', self._on_stereo, 2))
+                (CylinderArray, CYLINDERS_TOPIC, 'a cylinder array', self._on_cylinders, 10))
         self._subs = [self.create_subscription(
             msg_type, topic, guarded(self, f'failed on {what}', callback,
                                      topic=self._topics[topic]), depth)
             for msg_type, topic, what, callback, depth in subs]
+        # only while use_stereo_depth: every cloud costs its transfer even when dropped
+        self._stereo_sub: Any = None
+        self._subscribe_stereo(self._p['use_stereo_depth'])
         self._tick = guarded(self, 'publishing the map failed', self.publish_map)
         self._timer = self.create_timer(self._p['publish_period_s'], self._tick)
         # task-driven looks (core.attention)
@@ -259,7 +272,19 @@ class ObjectMapNode(Node):
     def _look_config(self) -> LookConfig:
         return LookConfig(dwell_s=self._p['dwell_s'], max_looks=self._p['max_looks'])
 
+    def _subscribe_stereo(self, on: bool) -> None:
+        """Subscribe to the stereo cloud (on) or drop the subscription and the last cloud."""
+        if on and self._stereo_sub is None:
+            self._stereo_sub = self.create_subscription(
+                PointCloud2, STEREO_TOPIC, guarded(self, 'failed on a cloud', self._on_stereo,
+                                                   topic=self._topics[STEREO_TOPIC]), 2)
+        elif not on and self._stereo_sub is not None:
+            self.destroy_subscription(self._stereo_sub)
+            self._stereo_sub, self._stereo = None, None
+
     def _on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        if 'use_stereo_depth' in changed:
+            self._subscribe_stereo(bool(changed['use_stereo_depth']))
         if 'dwell_s' in changed or 'max_looks' in changed:
             self.looks.config = self._look_config()
         if any(name in changed for name in MAP_PARAMETERS):
@@ -437,7 +462,8 @@ class ObjectMapNode(Node):
         reject = self.map.config.reject_label
         self._objects_pub.publish(detection3d_array(self.map.objects(confirmed_only=True),
                                                     reject, frame, stamp))
-        self._markers_pub.publish(marker_array(self.map, frame, stamp))
+        if has_subscribers(self._markers_pub):       # for viewers only
+            self._markers_pub.publish(marker_array(self.map, frame, stamp))
         self._map_pub.publish(map_object_array(self.map, frame, stamp))
         self.publications += 1
 
