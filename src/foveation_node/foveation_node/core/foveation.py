@@ -254,17 +254,16 @@ class Foveator:
         buf = self._buffers(channels)
         buf.kernels_for = None                  # _kernels below overwrites foveate's
         pyramid = self._pyramid(self._plane(image), buf)
+        depth = _CV_DEPTH[image.dtype.type]
+        if regions is not None:
+            return [self._foveate_region(image, pyramid, point, region, depth, channels)
+                    for point, region in zip(points, regions, strict=True)]
         top = self.levels - 1
         expanded_top = cv2.pyrUp(pyramid[top + 1], dstsize=self.level_sizes[top])
         laps = [cv2.subtract(pyramid[k], expanded_top if k == top else cv2.pyrUp(
             pyramid[k + 1], dstsize=self.level_sizes[k])) for k in range(self.levels)]
-        depth = _CV_DEPTH[image.dtype.type]
         out = []
-        for i, (u0, v0) in enumerate(points):
-            if regions is not None:
-                out.append(self._foveate_region(image, laps, expanded_top, (u0, v0),
-                                                regions[i], depth, channels))
-                continue
+        for u0, v0 in points:
             kernels = self._kernels(buf, channels, u0, v0)
             acc = expanded_top
             for k in range(top, -1, -1):
@@ -278,49 +277,54 @@ class Foveator:
         return out
 
     def _level_regions(self, region: Region) -> list[tuple[int, int, int, int]] | None:
-        """The part (x0, y0, x1, y1) of each level 0..K-1 that the level-0 rectangle's foveated
-        values depend on (None: the rectangle misses the image). pyrUp's output pixel j reads
-        input pixels j // 2 - 1 .. j // 2 + 1; one more pixel each side is margin."""
+        """The part (x0, y0, x1, y1) of each level 0..K that the level-0 rectangle's foveated
+        values depend on through pyrUp (None: the rectangle misses the image). pyrUp's output
+        pixel j reads input pixels j // 2 - 1 .. j // 2 + 1; one more pixel each side is margin."""
         x0, y0 = max(int(region[0]), 0), max(int(region[1]), 0)
         x1, y1 = min(int(region[2]), self.width), min(int(region[3]), self.height)
         if x0 >= x1 or y0 >= y1:
             return None
         out = [(x0, y0, x1, y1)]
-        for k in range(1, self.levels):
+        for k in range(1, self.levels + 1):
             w, h = self.level_sizes[k]
             x0, y0, x1, y1 = out[-1]
             out.append((max(x0 // 2 - 2, 0), max(y0 // 2 - 2, 0),
                         min((x1 - 1) // 2 + 3, w), min((y1 - 1) // 2 + 3, h)))
         return out
 
-    def _foveate_region(self, image: np.ndarray, laps: list[np.ndarray],
-                        expanded_top: np.ndarray, fixation: tuple[float, float], region: Region,
-                        depth: int, channels: int) -> np.ndarray:
-        """foveate(image, fixation) on region only (foveate_many's regions), 0 elsewhere."""
+    def _up_part(self, coarse: np.ndarray, parts: list[tuple[int, int, int, int]],
+                 k: int) -> np.ndarray:
+        """pyrUp of level k + 1's part (coarse: its values there) on level k's part."""
+        ax0, ay0, ax1, ay1 = parts[k + 1]
+        x0, y0, x1, y1 = parts[k]
+        w, h = self.level_sizes[k]
+        # the expansion covers level k from 2 * (ax0, ay0); it ends one pixel short of twice
+        # the part's size where level k ends at an odd size
+        up = cv2.pyrUp(coarse, dstsize=(2 * (ax1 - ax0) - (2 * ax1 > w),
+                                        2 * (ay1 - ay0) - (2 * ay1 > h)))
+        return up[y0 - 2 * ay0:y1 - 2 * ay0, x0 - 2 * ax0:x1 - 2 * ax0]
+
+    def _foveate_region(self, image: np.ndarray, pyramid: list[np.ndarray],
+                        fixation: tuple[float, float], region: Region, depth: int,
+                        channels: int) -> np.ndarray:
+        """foveate(image, fixation) on region only (foveate_many's regions), 0 elsewhere: the
+        Laplacians and the coarse-to-fine sum on each level's part only."""
         out = np.zeros_like(image)
         parts = self._level_regions(region)
         if parts is None:
             return out
         profiles = self._profiles(*fixation)
         top = self.levels - 1
-        acc = expanded_top
+        acc = pyramid[-1]
         for k in range(top, -1, -1):
             x0, y0, x1, y1 = parts[k]
+            gx0, gy0, gx1, gy1 = parts[k + 1]
+            expanded = self._up_part(pyramid[k + 1][gy0:gy1, gx0:gx1], parts, k)
+            lap = cv2.subtract(pyramid[k][y0:y1, x0:x1], expanded)              # L_k, Eq. 2.6
             col, row = profiles[k]
             plane = np.multiply(col[y0:y1, None], row[None, x0:x1])
-            kernel = plane if channels == 1 else cv2.merge([plane] * channels)
-            lap = cv2.multiply(laps[k][y0:y1, x0:x1], kernel)                  # F_k, Eq. 2.13
-            if k == top:
-                base = expanded_top[y0:y1, x0:x1]
-            else:
-                # pyrUp of the level above's part covers level k from 2 * its x0, y0; it ends
-                # one pixel short of twice its size where the level ends at an odd size
-                ax0, ay0, ax1, ay1 = parts[k + 1]
-                w, h = self.level_sizes[k]
-                dw = 2 * (ax1 - ax0) - (2 * ax1 > w)
-                dh = 2 * (ay1 - ay0) - (2 * ay1 > h)
-                up = cv2.pyrUp(acc, dstsize=(dw, dh))
-                base = up[y0 - 2 * ay0:y1 - 2 * ay0, x0 - 2 * ax0:x1 - 2 * ax0]
+            lap = cv2.multiply(lap, plane if channels == 1 else cv2.merge([plane] * channels))
+            base = expanded if k == top else self._up_part(acc, parts, k)
             if k > 0:
                 acc = cv2.add(base, lap)
         x0, y0, x1, y1 = parts[0]
