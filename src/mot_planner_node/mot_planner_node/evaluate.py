@@ -204,7 +204,8 @@ def make_detector(spec: str, args: argparse.Namespace) -> Detector:
         return HogDetector(win_stride=args.win_stride, scale=args.scale,
                            hit_threshold=args.hit_threshold,
                            region_hit_threshold=args.region_hit_threshold,
-                           upsample=args.read_upsample)
+                           upsample=args.read_upsample,
+                           full_frame_scale=args.full_frame_scale)
     module, _, name = spec.partition(':')
     if not name:
         raise ValueError(f"--detector must be 'hog' or 'module:factory', got {spec!r}")
@@ -438,6 +439,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--detector', default='hog', help="'hog' or 'package.module:factory'")
     p.add_argument('--win-stride', type=int, default=8, help='HOG window stride')
     p.add_argument('--scale', type=float, default=1.05, help='HOG pyramid scale step')
+    p.add_argument('--full-frame-scale', type=float, default=None,
+                   help='HOG pyramid scale step on full frames only (default: --scale)')
     p.add_argument('--hit-threshold', type=float, default=0.0, help='HOG SVM threshold')
     p.add_argument('--region-hit-threshold', type=float, default=None,
                    help="HOG SVM threshold inside the tracks' regions (default "

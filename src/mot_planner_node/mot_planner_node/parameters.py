@@ -69,6 +69,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param('win_stride', 8, 'HOG window stride [px], a multiple of 8 in [8, 64].', '[8, 64]',
           step=8),
     Param('scale', 1.05, 'HOG pyramid scale step, in (1, 2].', '(1, 2]'),
+    Param('full_frame_scale', 0.0, 'HOG pyramid scale step on full frames only (the births\' '
+          'scans; 0: scale), 0 or in (1, 2].', '[0, 2]',
+          constraints='0 or in (1, 2]'),
     Param('publish_overlay', True, f'Publish the overlay image on {OVERLAY_TOPIC}.'),
     Param('publish_gaze', True,
           f'Send pursuit commands on {GAZE_COMMAND_TOPIC} to keep the tracks in view.'),
@@ -103,7 +106,7 @@ PLANNER_PARAMETERS = ('k_max', 's_max', 'alpha_c', 'alpha_s', 'budget_ms', 'hori
 TRACK_PARAMETERS = ('full_frame_period', 'birth_share', 'birth_score', 'report_misses',
                     'keep_lost', 'occluded_share', 'tentative_misses')
 DETECTOR_PARAMETERS = ('hit_threshold', 'region_hit_threshold', 'read_upsample', 'win_stride',
-                       'scale')
+                       'scale', 'full_frame_scale')
 
 
 def check_parameter(name: str, value: Any) -> str | None:
@@ -118,6 +121,8 @@ def check_parameter(name: str, value: Any) -> str | None:
     if name == 'max_rate_hz' and 0.0 < value < MIN_RATE_HZ:
         return (f'max_rate_hz must be 0 (every frame) or at least {MIN_RATE_HZ} Hz, got {value:g} '
                 '(a frame every few hours is tracking switched off)')
+    if name == 'full_frame_scale' and 0.0 < value <= 1.0:
+        return f'full_frame_scale must be 0 (the scale parameter) or in (1, 2], got {value:g}'
     if name == 'world_frame' and not value.strip('/'):
         return f'world_frame must be a frame id, got {value!r}'
     return None
@@ -129,7 +134,8 @@ def make_hog_detector(params: dict[str, Any]) -> Detector:
     return HogDetector(win_stride=int(params['win_stride']), scale=float(params['scale']),
                        hit_threshold=float(params['hit_threshold']),
                        region_hit_threshold=float(params['region_hit_threshold']),
-                       upsample=float(params['read_upsample']))
+                       upsample=float(params['read_upsample']),
+                       full_frame_scale=float(params['full_frame_scale']) or None)
 
 
 

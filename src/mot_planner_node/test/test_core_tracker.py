@@ -265,7 +265,7 @@ def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
     seen = []
     thresholds = []
 
-    def fake_run(crop, padding=None, hit_threshold=None):
+    def fake_run(crop, padding=None, hit_threshold=None, scale=None):
         seen.append(crop.shape)
         thresholds.append(hit_threshold)
         return Detections(np.array([[10.0, 20.0, 64.0, 128.0]]), np.array([1.5]))
@@ -283,7 +283,7 @@ def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
     # An upsampling detector reads the crop coarser, then scans it at the region's scale.
     up = HogDetector(upsample=1.5)
     crops = []
-    monkeypatch.setattr(up, '_run', lambda crop, padding=None, hit_threshold=None: (
+    monkeypatch.setattr(up, '_run', lambda crop, padding=None, hit_threshold=None, scale=None: (
         crops.append(crop.shape), Detections.empty())[1])
     up.detect(image, np.array([[100.0, 50.0, 300.0, 450.0, 2.0, 3.0],
                                [100.0, 50.0, 300.0, 450.0, 1.0, 3.0]]))
@@ -293,6 +293,34 @@ def test_hog_regions_map_back_to_the_image(monkeypatch) -> None:
     seen.clear()
     d = hog.detect(image, np.array([[700.0, 0.0, 800.0, 100.0, 1.0, 1.0]]))
     assert seen == [] and d.boxes.shape == (0, 4)
+
+
+def test_full_frames_are_scanned_at_their_own_scale_step() -> None:
+    # issue 27: the births' full-frame scans are most of the detector's time; a coarser step
+    # there (14 pyramid levels of a 640x480 frame at 1.1 instead of 27 at 1.05) halves it,
+    # while the regions keep the step the observation model is built from
+    steps = []
+
+    class Recording:
+        def __init__(self, hog):
+            self.hog, self.winSize = hog, hog.winSize
+
+        def detectMultiScale(self, image, **kw):
+            steps.append(kw['scale'])
+            return self.hog.detectMultiScale(image, **kw)
+
+    image = np.full((480, 640, 3), 128, np.uint8)
+    regions = np.array([[100.0, 50.0, 300.0, 450.0, 1.0, 3.0]])
+    for full_frame_scale, expected in ((None, [1.05, 1.05]), (1.1, [1.1, 1.05])):
+        hog = HogDetector(full_frame_scale=full_frame_scale)
+        hog.hog = Recording(hog.hog)
+        steps.clear()
+        hog.detect(image)
+        hog.detect(image, regions)
+        assert steps == expected
+        assert hog.geometry.scale_step == 1.05
+    with pytest.raises(ValueError, match='full_frame_scale'):
+        HogDetector(full_frame_scale=1.0)
 
 
 def test_hog_runs_on_plain_images() -> None:

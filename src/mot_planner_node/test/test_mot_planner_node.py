@@ -25,6 +25,8 @@ def test_parameter_checks() -> None:
         assert refused('win_stride', 12) and refused('win_stride', 72) and refused('win_stride', 0)
         assert refused('win_stride', 16) is None and refused('win_stride', 64) is None
         assert refused('scale', 1.0) and refused('scale', 1.01) is None
+        assert refused('full_frame_scale', 1.0) and refused('full_frame_scale', 0.5)
+        assert refused('full_frame_scale', 0.0) is None and refused('full_frame_scale', 1.1) is None
         assert refused('s_max', 0.0) and refused('s_max', 1.0) is None
         assert refused('person_height_m', [2.0, 1.0]) and refused('person_height_m', [0.0, 2.0])
         assert refused('person_height_m', [1.0, 2.0, 3.0]) and refused('world_frame', '')
