@@ -27,8 +27,8 @@
   2 batched saliency passes) with the whole-frame model.
 - window_two_pass_ms / window_two_pass_node_ms: the same with the graph's window model
   (fovea_cnn), foveating each image, and as the node runs it (pass 1 on the frame's own foveated
-  image, pass 2's images from one pyramid, `Foveator.foveate_many`): what one recognition costs
-  the node's worker.
+  image, pass 2's images from one pyramid and only the window the network reads,
+  `Foveator.foveate_many` with regions): what one recognition costs the node's worker.
   All three are CPU milliseconds per call on one thread; null if the model is missing.
 - With --imagenet DIR (a folder written by export_imagenet_classifier): the same three for each
   efficientnet_lite<n>.pt there (`lite<n>_classify_ms`, `lite<n>_saliency_ms`,
@@ -324,7 +324,7 @@ def bench_recognition(frames: list[np.ndarray], foveator: Foveator) -> dict[str,
                                          foveate_many=foveator.foveate_many), 2.0, 5)
         print(f'the graph\'s window model (fovea_cnn): two passes {1e3 / alone[0]:.0f} ms CPU '
               f'foveating each image, {1e3 / shared[0]:.0f} ms as the node runs them (pass 1 '
-              f'on the frame\'s own foveated image, pass 2 from one pyramid)')
+              f'on the frame\'s own foveated image, pass 2 from one pyramid, its windows only)')
         out.update(window_two_pass_ms=round(1e3 / alone[0], 1),
                    window_two_pass_node_ms=round(1e3 / shared[0], 1))
     return out
