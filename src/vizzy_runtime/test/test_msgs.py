@@ -156,3 +156,21 @@ def test_array_fields_accept_what_rclpy_accepts():
     assert msgs.get_message('geometry_msgs/msg/Quaternion')().w == 1.0  # upstream default
     raw = msgs.serialize(js)
     assert msgs.deserialize(raw, 'sensor_msgs/msg/JointState') == js
+
+
+def test_constructors_are_generated_with_a_parameter_per_field():
+    """rosbags' deserializer builds every (nested) message through the constructor (a TFMessage
+    of 5 transforms: 31 of them), so each type gets its own (issue 27): the fields by name."""
+    import inspect
+    Vector3 = msgs.get_message('geometry_msgs/msg/Vector3')
+    assert list(inspect.signature(Vector3).parameters)[:3] == ['x', 'y', 'z']
+    assert Vector3(1.0, z=3.0) == Vector3(x=1.0, y=0.0, z=3.0)
+    assert Vector3(1.0, None, 3.0).y == 0.0       # None: the default, by position or by name
+    with pytest.raises(TypeError, match='at most 3 positional'):
+        Vector3(1.0, 2.0, 3.0, 4.0)
+    with pytest.raises(TypeError, match=r"no field\(s\) \['w'\]"):
+        Vector3(w=1.0)
+    JointState = msgs.get_message('sensor_msgs/msg/JointState')
+    js = JointState(name=['a'], position=[1.5])
+    assert js.position.dtype == np.float64 and js.velocity.size == 0 and js.header.frame_id == ''
+    assert JointState() is not JointState() and JointState().name is not JointState().name

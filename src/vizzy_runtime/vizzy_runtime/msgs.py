@@ -14,6 +14,7 @@ and reads on serialization, so a message crosses the wire without per-element Py
 
 from __future__ import annotations
 
+import keyword
 import os
 import threading
 from collections.abc import Sequence
@@ -218,6 +219,49 @@ def _default_factory(registry: _Registry, desc: Any) -> Any:
     return list
 
 
+def _generic_init(typename: str, names: list[str], factories: dict[str, Any]) -> Any:
+    """__init__(*fields, **fields) for any field names: a field not given, or given as None,
+    gets its default."""
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        if len(args) > len(names):
+            raise TypeError(f'{typename} takes at most {len(names)} positional arguments')
+        for name, value in zip(names, args, strict=False):
+            setattr(self, name, factories[name]() if value is None else value)
+        for name in names[len(args):]:
+            value = kwargs.pop(name, None)
+            setattr(self, name, factories[name]() if value is None else value)
+        if kwargs:
+            raise TypeError(f'{typename} has no field(s) {sorted(kwargs)}')
+    return __init__
+
+
+def _make_init(typename: str, names: list[str], factories: dict[str, Any]) -> Any:
+    """The class's __init__, generated with one parameter per field: rosbags' deserializer
+    builds every (nested) message through it (a TFMessage of 5 transforms: 31 objects), and a
+    generic loop over names, setattr and kwargs cost 3 to 4 times as much (issue 27). Same
+    behaviour as _generic_init, which field names that are no Python identifiers still use."""
+    if not all(n.isidentifier() and not keyword.iskeyword(n) and not n.startswith('_')
+               and n != 'self'
+               for n in names) or len(names) > 200:
+        return _generic_init(typename, names, factories)
+    params = ''.join(f', {n}=None' for n in names)
+    body = ''.join(f'    self.{n} = _f_{n}() if {n} is None else {n}\n' for n in names)
+    source = (f'def __init__(self{params}, *_args, **_kwargs):\n'
+              '    if _args or _kwargs:\n'
+              '        _refuse(len(_args), _kwargs)\n'
+              f'{body}')
+
+    def refuse(extra: int, kwargs: dict[str, Any]) -> None:
+        if extra:
+            raise TypeError(f'{typename} takes at most {len(names)} positional arguments')
+        raise TypeError(f'{typename} has no field(s) {sorted(kwargs)}')
+
+    scope: dict[str, Any] = {f'_f_{n}': factories[n] for n in names}
+    scope['_refuse'] = refuse
+    exec(compile(source, f'<{typename}.__init__>', 'exec'), scope)  # noqa: S102 - our source
+    return scope['__init__']
+
+
 def _make_class(registry: _Registry, typename: str) -> type:
     fields = registry.fields(typename)
     names = [name for name, _ in fields]
@@ -229,16 +273,7 @@ def _make_class(registry: _Registry, typename: str) -> type:
     sequences = {name for name, (_dtype, length) in arrays.items() if length is None}
     pkg, kind, short = typename.split('/')
 
-    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
-        if len(args) > len(names):
-            raise TypeError(f'{typename} takes at most {len(names)} positional arguments')
-        for name, value in zip(names, args, strict=False):
-            setattr(self, name, value)
-        for name in names[len(args):]:
-            value = kwargs.pop(name, None)
-            setattr(self, name, factories[name]() if value is None else value)
-        if kwargs:
-            raise TypeError(f'{typename} has no field(s) {sorted(kwargs)}')
+    __init__ = _make_init(typename, names, factories)
 
     def __eq__(self: Any, other: object) -> bool:
         if getattr(other, '__msgtype__', None) != typename:
@@ -284,6 +319,8 @@ _registry_lock = threading.Lock()
 
 def registry() -> _Registry:
     global _registry
+    if _registry is not None:       # made once; no lock on the per-message path
+        return _registry
     with _registry_lock:
         if _registry is None:
             _registry = _Registry()
@@ -312,21 +349,30 @@ def type_of(msg_or_cls: Any) -> str:
     return f'{module[0]}/msg/{cls.__name__}'
 
 
+# Type names (as given) whose classes exist: every message sent or received passes here, and
+# the registry's lock and the name's normalization cost more than a small message's CDR.
+_prepared: set[str] = set()
+
+
+def _store_for(typename: str) -> Any:
+    reg = registry()
+    if typename not in _prepared:
+        reg.get_class(typename)
+        _prepared.add(typename)
+    return reg.store
+
+
 def serialize(msg: Any, typename: str | None = None) -> memoryview:
     """XCDR1 little-endian bytes with the 4-byte encapsulation header, as ROS 2 sends them."""
-    reg = registry()
     typename = typename or type_of(msg)
-    reg.get_class(typename)
-    return reg.store.serialize_cdr(msg, typename)
+    return _store_for(typename).serialize_cdr(msg, typename)
 
 
 def deserialize(raw: bytes | memoryview, typename: str) -> Any:
     """Message object from CDR bytes; primitive arrays are numpy views over `raw` (no copy)."""
-    reg = registry()
-    reg.get_class(typename)
     # a memoryview, so rosbags' rawdata[4:] does not copy the payload
-    return reg.store.deserialize_cdr(raw if isinstance(raw, memoryview) else memoryview(raw),
-                                     typename)
+    return _store_for(typename).deserialize_cdr(
+        raw if isinstance(raw, memoryview) else memoryview(raw), typename)
 
 
 def message_definition(typename: str) -> str:

@@ -81,6 +81,8 @@ _SHOWN_FRAMES = 20            # frames named in an unknown-frame message
 
 def stamp_to_seconds(stamp: Any) -> float:
     """Seconds of a float, a builtin_interfaces/Time (sec, nanosec) or an rclpy Time."""
+    if type(stamp) is float:        # set_transforms' stamps, already seconds
+        return stamp
     if hasattr(stamp, 'sec') and hasattr(stamp, 'nanosec'):
         return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
     if hasattr(stamp, 'nanoseconds'):
@@ -118,6 +120,36 @@ def _inverse(m: np.ndarray) -> np.ndarray:
     inv[:3, :3] = m[:3, :3].T
     inv[:3, 3] = -m[:3, :3].T @ m[:3, 3]
     return inv
+
+
+# Rotation matrix entries as quadratic forms of an (unnormalized) quaternion (x, y, z, w), over
+# its squared norm: R = (q q^T).flat @ _QUAT_TO_ROT / |q|^2 (scipy's Rotation.as_matrix terms).
+_QUAT_TO_ROT = np.zeros((16, 9))
+for _entry, _terms in enumerate((
+        ((0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, 1)), ((0, 1, 2), (2, 3, -2)),
+        ((0, 2, 2), (1, 3, 2)), ((0, 1, 2), (2, 3, 2)), ((0, 0, -1), (1, 1, 1), (2, 2, -1),
+                                                         (3, 3, 1)),
+        ((1, 2, 2), (0, 3, -2)), ((0, 2, 2), (1, 3, -2)), ((1, 2, 2), (0, 3, 2)),
+        ((0, 0, -1), (1, 1, -1), (2, 2, 1), (3, 3, 1)))):
+    for _k, _l, _c in _terms:
+        _QUAT_TO_ROT[4 * _k + _l, _entry] = _c
+
+
+def _pose_matrices(poses: np.ndarray) -> np.ndarray:
+    """(N, 7) translations and quaternions (x y z, x y z w) -> (N, 4, 4), as
+    vizzy_vision.frames.matrices_from_transforms (which checks them: ValueError naming a bad
+    one) without scipy's per-call overhead (the /tf path)."""
+    t, q = poses[:, :3], poses[:, 3:]
+    norm2 = np.einsum('ij,ij->i', q, q)
+    if not (np.isfinite(t).all() and np.isfinite(norm2).all() and (norm2 >= 1e-18).all()):
+        # a bad value (raises, naming it), or a norm^2 out of float range: the reference
+        return matrices_from_transforms(t, q)
+    m = np.zeros((len(poses), 4, 4))
+    m[:, :3, :3] = ((q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _QUAT_TO_ROT
+                    / norm2[:, None]).reshape(-1, 3, 3)
+    m[:, :3, 3] = t
+    m[:, 3, 3] = 1.0
+    return m
 
 
 class _Edge:
@@ -233,22 +265,25 @@ class TransformBuffer:
         A message with a non-finite value or a zero quaternion raises ValueError naming it, and
         nothing of the batch is stored; refused edges: as set_transforms.
         """
+        # every /tf message of every reader comes here (65 a second in the graph): one pass over
+        # the messages, one array, and the matrices in a few vectorized steps (issue 27)
         transforms = list(transforms)
         if not transforms:
             return
-        parents = [t.header.frame_id for t in transforms]
-        children = [t.child_frame_id for t in transforms]
-        trans = np.array([(t.transform.translation.x, t.transform.translation.y,
-                           t.transform.translation.z) for t in transforms], dtype=np.float64)
-        quats = np.array([(t.transform.rotation.x, t.transform.rotation.y,
-                           t.transform.rotation.z, t.transform.rotation.w) for t in transforms],
-                         dtype=np.float64)
+        parents: list[str] = []
+        children: list[str] = []
+        values: list[float] = []
+        for t in transforms:
+            parents.append(t.header.frame_id)
+            children.append(t.child_frame_id)
+            tr, rot = t.transform.translation, t.transform.rotation
+            values += (tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w)
+        poses = np.array(values, dtype=np.float64).reshape(-1, 7)
         try:
-            matrices = matrices_from_transforms(trans, quats)
+            matrices = _pose_matrices(poses)
         except ValueError as exc:
-            bad = [f'{p}->{c}' for p, c, tr, q in zip(parents, children, trans, quats, strict=True)
-                   if not (np.isfinite(tr).all() and np.isfinite(q).all()
-                           and np.linalg.norm(q) >= 1e-9)]
+            bad = [f'{p}->{c}' for p, c, pose in zip(parents, children, poses, strict=True)
+                   if not (np.isfinite(pose).all() and np.linalg.norm(pose[3:]) >= 1e-9)]
             raise ValueError(f'{exc} in transform(s) {bad}') from None
         stamps = None if static else [stamp_to_seconds(t.header.stamp) for t in transforms]
         self.set_transforms(parents, children, matrices, stamps)
