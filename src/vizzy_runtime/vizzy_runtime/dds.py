@@ -23,7 +23,14 @@ from typing import Any
 
 import cyclonedds.idl.types as idl
 from cyclonedds._clayer import ddspy_take
-from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
+from cyclonedds.core import (
+    DDSException,
+    InstanceState,
+    Listener,
+    SampleState,
+    ViewState,
+    _data_available_fn,
+)
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl.annotations import final
@@ -339,8 +346,15 @@ class RawReader:
         self.qos = qos
         self._on_data = on_data
         self._early = False  # data (e.g. latched samples) may arrive before DataReader() returns
-        listener = (Listener(on_data_available=lambda _r: self._data_available()) if on_data
-                    else None)
+        listener: Listener | None = None
+        if on_data:
+            # the C callback calls _data_available itself: cyclonedds' own wrapper looks the
+            # reader up in a weak dictionary for every sample first (a node's /clock: 100 a second)
+            listener = Listener()
+            on_sample = lambda _entity, _arg: self._data_available()  # noqa: E731
+            self._listener_fn = _data_available_fn(on_sample)  # type: ignore[misc]
+            listener._set_data_available(listener._ref, self._listener_fn)
+            listener._on_data_available = self._listener_fn   # the reader keeps its listener
         self._reader = DataReader(participant(), _topic(ros_topic, self.typename),
                                   qos.to_dds(type_hash_user_data(self.typename)), listener=listener)
         if self._early and on_data:
@@ -370,6 +384,97 @@ class RawReader:
 
     def matched_count(self) -> int:
         return _matched(_sub_matched, dds_c_t.subscription_matched_status, self._reader._ref)
+
+
+# --- waiting in the executor's thread ---------------------------------------------------------
+
+def _c_fn(name: str, restype: Any, *argtypes: Any) -> Any:
+    fn = getattr(_libddsc, name)
+    fn.argtypes, fn.restype = list(argtypes), restype
+    return fn
+
+
+# ctypes calls (the GIL is released while Cyclone blocks in dds_waitset_wait)
+_create_waitset = _c_fn('dds_create_waitset', ct.c_int32, ct.c_int32)
+_waitset_attach = _c_fn('dds_waitset_attach', ct.c_int32, ct.c_int32, ct.c_int32, ct.c_ssize_t)
+_waitset_wait = _c_fn('dds_waitset_wait', ct.c_int32, ct.c_int32, ct.POINTER(ct.c_ssize_t),
+                      ct.c_size_t, ct.c_int64)
+_create_readcondition = _c_fn('dds_create_readcondition', ct.c_int32, ct.c_int32, ct.c_uint32)
+_create_guardcondition = _c_fn('dds_create_guardcondition', ct.c_int32, ct.c_int32)
+_set_guardcondition = _c_fn('dds_set_guardcondition', ct.c_int32, ct.c_int32, ct.c_bool)
+_dds_delete = _c_fn('dds_delete', ct.c_int32, ct.c_int32)
+_NEVER_NS = 2**63 - 1        # DDS_INFINITY
+
+
+class WaitSet:
+    """A Cyclone waitset on readers' data and a guard condition, for an executor's thread.
+
+    The executor blocks in wait() (GIL released) until a watched reader holds samples, wake() is
+    called (any thread) or the timeout passes. A reader watched this way needs no Python
+    listener: a Python callback from Cyclone's receive thread for every sample, then a
+    threading wake-up of the executor, cost each received message ~0.075 ms of CPU more
+    (issue 27; bench/runtime_messages.py)."""
+
+    def __init__(self) -> None:
+        dp = participant()
+        self._ref = self._check(_create_waitset(dp._ref), 'creating a waitset')
+        self._guard = self._check(_create_guardcondition(dp._ref), 'creating a guard condition')
+        self._check(_waitset_attach(self._ref, self._guard, 0), 'attaching a guard condition')
+        self._conditions: dict[int, int] = {}     # key (> 0) -> read condition
+        self._xs = (ct.c_ssize_t * 8)()
+
+    @staticmethod
+    def _check(ret: int, what: str) -> int:
+        if ret < 0:
+            raise DDSException(ret, what)
+        return ret
+
+    def watch(self, key: int, reader: RawReader) -> None:
+        """Wake wait() while reader holds samples (read or not); wait() then returns key."""
+        if key <= 0 or key in self._conditions:
+            raise ValueError(f'waitset key {key} is not positive or already watched')
+        cond = self._check(_create_readcondition(reader.entity._ref, ANY_STATE),
+                           f'watching {reader.topic_name}')
+        self._conditions[key] = cond
+        if _waitset_attach(self._ref, cond, key) < 0:
+            self.unwatch(key)
+            raise DDSException(-1, f'attaching {reader.topic_name} to a waitset')
+        if len(self._xs) <= len(self._conditions):
+            self._xs = (ct.c_ssize_t * (2 * len(self._conditions) + 1))()
+
+    def unwatch(self, key: int) -> None:
+        cond = self._conditions.pop(key, None)
+        if cond is not None:
+            _dds_delete(cond)       # detaches it (an error: gone with its reader already)
+
+    def watched(self) -> set[int]:
+        return set(self._conditions)
+
+    def wake(self) -> None:
+        """Make the current or next wait() return (any thread)."""
+        _set_guardcondition(self._guard, True)
+
+    def wait(self, timeout_s: float | None) -> list[int]:
+        """Block up to timeout_s (None: for ever) until a watched reader has data or wake() was
+        called; the keys of the readers holding data (wake() is cleared)."""
+        timeout = _NEVER_NS if timeout_s is None else max(0, int(timeout_s * 1e9))
+        xs = self._xs
+        n = self._check(_waitset_wait(self._ref, xs, len(xs), timeout), 'waiting')
+        if n == 0:
+            return []
+        _set_guardcondition(self._guard, False)
+        return [key for key in xs[:min(n, len(xs))] if key > 0]
+
+    def close(self) -> None:
+        """Delete the waitset and its conditions (the readers stay)."""
+        for key in list(self._conditions):
+            self.unwatch(key)
+        _dds_delete(self._guard)
+        _dds_delete(self._ref)
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):   # at exit: DDS (or this module) may be gone
+            self.close()
 
 
 @dataclass(frozen=True)
@@ -476,6 +581,6 @@ def delete(entity: RawReader | RawWriter) -> None:
 
 
 __all__ = [
-    'QoS', 'RawReader', 'RawWriter', 'delete', 'dds_topic_name', 'domain_id', 'idl_type',
+    'QoS', 'RawReader', 'RawWriter', 'WaitSet', 'delete', 'dds_topic_name', 'domain_id', 'idl_type',
     'lan_mode', 'loopback_config', 'participant', 'ros_topic_name', 'Publisher', 'Subscriber',
 ]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import threading
+import weakref
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +26,8 @@ class Context:
         self._on_shutdown: list[Callable[[], None]] = []
         self._discovery: Any = None
         self.generation = 0  # bumped whenever something is ready to run
+        self.subscriptions_version = 0  # bumped when a node makes or destroys a subscription
+        self._wakers: weakref.WeakSet[Any] = weakref.WeakSet()  # executors' waitsets
 
     def init(self, args: list[str] | None = None, *, initialize_logging: bool = True,
              domain_id: int | None = None) -> None:
@@ -55,6 +58,19 @@ class Context:
         with self.wake:
             self.generation += 1
             self.wake.notify_all()
+            for waitset in self._wakers:     # executors waiting on DDS (executors.py)
+                waitset.wake()
+
+    def _add_waker(self, waitset: Any) -> None:
+        """An executor's waitset (dds.WaitSet): notify() wakes it too (kept while it lives)."""
+        with self.wake:
+            self._wakers.add(waitset)
+
+    def _subscriptions_changed(self) -> None:
+        """A subscription was made or destroyed: executors update what they wait on."""
+        with self.wake:
+            self.subscriptions_version += 1
+        self.notify()
 
     def on_shutdown(self, callback: Callable[[], None]) -> None:
         self._on_shutdown.append(callback)

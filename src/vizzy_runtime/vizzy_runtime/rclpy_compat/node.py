@@ -1,12 +1,15 @@
 """rclpy.node.Node on Cyclone DDS: publishers, subscriptions, timers, parameters, logger, clock.
 
-Callbacks run in the executor's thread (spin), never in Cyclone's listener threads: a
-subscription's listener only flags itself ready and wakes the executor.
+Callbacks run in the executor's thread (spin), never in Cyclone's threads: the executor waits on
+a Cyclone waitset that each subscription's reader triggers while it holds samples (no Python
+listener per sample; the node's /clock, "direct", is the exception: see Subscription).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+import struct
 import threading
 import time as _time
 from collections.abc import Callable, Iterable
@@ -36,7 +39,7 @@ from .qos import (
     qos_profile_parameter_events,
     qos_profile_rosout_default,
 )
-from .time import Clock, ROSClock, Time
+from .time import Clock, ROSClock
 
 ParameterEvent = msgs.get_message('rcl_interfaces/msg/ParameterEvent')
 
@@ -102,11 +105,31 @@ class Publisher:
 
 # A subscription's malformed samples are logged at most this often [s] (each one is counted).
 MALFORMED_LOG_PERIOD_S = 5.0
+# Keys by which executors' waitsets name subscriptions (never reused, unlike id()).
+_WAIT_KEYS = itertools.count(1)
+_CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+_CLOCK_LE = struct.Struct('<iI')
+
+
+def _decode_clock(raw: bytes | memoryview, typename: str = _CLOCK_TYPE) -> tuple[int, int]:
+    """(sec, nanosec) of a rosgraph_msgs/Clock sample. A node reads 100 a second in the graph:
+    the usual one (little-endian CDR, 8 bytes and up to 3 of padding) is read in place, with no
+    message objects; any other goes through msgs.deserialize (its error for a malformed one)."""
+    if 12 <= len(raw) <= 15 and raw[0] == 0 and raw[1] == 1:
+        sec, nanosec = _CLOCK_LE.unpack_from(raw, 4)
+        return sec, nanosec
+    msg = msgs.deserialize(raw, typename)
+    return int(msg.clock.sec), int(msg.clock.nanosec)
+
 
 class Subscription:
     def __init__(self, node: Node, msg_type: type, topic: str, callback: Callable[[Any], None],
-                 qos: QoSProfile, raw: bool, direct: bool = False) -> None:
+                 qos: QoSProfile, raw: bool, direct: bool = False,
+                 decode: Callable[[Any, str], Any] | None = None) -> None:
         self.msg_type = msg_type
+        # what the callback gets of each sample (msgs.deserialize: the message; a ValueError or
+        # rosbags' SerdeError: counted and logged as malformed)
+        self._decode = decode or msgs.deserialize
         # direct: the callback runs in Cyclone's listener thread as the data arrives, not in the
         # executor (for /clock: a tick needs no executor wake-up unless a timer is due)
         self.direct = direct
@@ -119,8 +142,12 @@ class Subscription:
         self.malformed = 0  # samples that could not be decoded (counted, logged throttled)
         self._malformed_logged = -math.inf
         self._node = node
-        self._ready = True  # take whatever arrived before the listener was attached
-        self._reader = dds.RawReader(topic, self.typename, qos.to_dds(), on_data=self._on_data)
+        self._ready = True  # take whatever arrived before the executor first waited
+        self._wait_key = next(_WAIT_KEYS)
+        # a direct subscription's listener dispatches; the others have none: the executor's
+        # waitset wakes it and says which readers hold samples (Executor._wait)
+        self._reader = dds.RawReader(topic, self.typename, qos.to_dds(),
+                                     on_data=self._on_data if direct else None)
         if direct:
             self._dispatch_direct()       # what arrived while the reader was being made
 
@@ -133,10 +160,9 @@ class Subscription:
         return self._reader.guid
 
     def _on_data(self, _reader: dds.RawReader) -> None:
+        """A direct subscription's listener (Cyclone's thread)."""
         self._ready = True
-        if not self.direct:
-            self._node.context.notify()
-        elif hasattr(self, '_reader'):    # (not while the reader is being made: __init__ takes)
+        if hasattr(self, '_reader'):      # (not while the reader is being made: __init__ takes)
             self._dispatch_direct()
 
     def _dispatch_direct(self) -> None:
@@ -172,7 +198,7 @@ class Subscription:
                 message: Any = raw
             else:
                 try:
-                    message = msgs.deserialize(raw, self.typename)
+                    message = self._decode(raw, self.typename)
                 except Exception as err:  # noqa: BLE001 - one bad message never kills a node
                     self.malformed += 1
                     now = _time.monotonic()
@@ -198,9 +224,12 @@ class Timer:
         self.timer_period_ns = int(period_sec * 1e9)
         self.callback = callback
         self.clock = clock
+        # the clock's time [ns]; a clock of another kind than ours: through now()
+        self._now_ns: Callable[[], int] = getattr(clock, '_now_ns', None) or (
+            lambda: clock.now().nanoseconds)
         self._node = node
         self._canceled = not autostart
-        self._next = clock.now().nanoseconds + self.timer_period_ns
+        self._next = self._now_ns() + self.timer_period_ns
 
     def is_canceled(self) -> bool:
         return self._canceled
@@ -210,20 +239,20 @@ class Timer:
 
     def reset(self) -> None:
         self._canceled = False
-        self._next = self.clock.now().nanoseconds + self.timer_period_ns
+        self._next = self._now_ns() + self.timer_period_ns
         self._node.context.notify()
 
     def is_ready(self) -> bool:
         return not self._canceled and self.time_until_next_call() <= 0
 
     def time_until_next_call(self) -> int:
-        now = self.clock.now().nanoseconds
+        now = self._now_ns()
         if now + self.timer_period_ns < self._next - self.timer_period_ns:
             self._next = now + self.timer_period_ns  # the clock jumped back (sim time restarted)
         return self._next - now
 
     def call(self) -> None:
-        now = self.clock.now().nanoseconds
+        now = self._now_ns()
         missed = max(0, (now - self._next) // self.timer_period_ns)
         self._next += (missed + 1) * self.timer_period_ns
         self._node._run_callback(self.callback, None, 'timer')
@@ -373,14 +402,16 @@ class Node:
 
     def _create_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
                              qos_profile: QoSProfile | int, *, raw: bool = False,
-                             direct: bool = False) -> Subscription:
-        """direct: the callback runs in the DDS listener thread (this runtime's /clock only)."""
+                             direct: bool = False,
+                             decode: Callable[[Any, str], Any] | None = None) -> Subscription:
+        """direct: the callback runs in the DDS listener thread (this runtime's /clock only);
+        decode(raw, typename): what the callback gets instead of the message."""
         sub = Subscription(self, msg_type, self.resolve_topic_name(topic), callback,
-                           as_profile(qos_profile), raw, direct)
+                           as_profile(qos_profile), raw, direct, decode)
         with self._lock:
             self.subscriptions.append(sub)
         graph.node_changed(self)  # graph hook: republish this node's readers
-        self.context.notify()
+        self.context._subscriptions_changed()
         return sub
 
     def create_timer(self, timer_period_sec: float, callback: Callable[[], Any],
@@ -407,6 +438,7 @@ class Node:
             if subscription not in self.subscriptions:
                 return False
             self.subscriptions.remove(subscription)
+        self.context._subscriptions_changed()    # executors stop watching it
         dds.delete(subscription._reader)
         graph.node_changed(self)  # graph hook: republish this node's readers
         return True
@@ -705,19 +737,21 @@ class Node:
         so timers on the node's clock do not fire before it), or off (system time; the last
         /clock is kept for when it is turned on again)."""
         if enabled and self._clock_sub is None:
-            clock_type = msgs.get_message('rosgraph_msgs/msg/Clock')
+            clock_type = msgs.get_message(_CLOCK_TYPE)
             self._clock_sub = self._create_subscription(clock_type, '/clock', self._on_clock,
-                                                        qos_profile_clock, direct=True)
+                                                        qos_profile_clock, direct=True,
+                                                        decode=_decode_clock)
         elif not enabled and self._clock_sub is not None:
             self.destroy_subscription(self._clock_sub)
             self._clock_sub = None
         self._clock._set_ros_time_is_active(enabled)
 
-    def _on_clock(self, msg: Any) -> None:
-        """A /clock sample moves the node's ROS time; one that is no valid time (negative, or
-        nanosec beyond a second) is refused with a warning (the first, then every 100th) and
-        counted in clock_refused, so junk on /clock cannot stop the node."""
-        sec, nanosec = int(msg.clock.sec), int(msg.clock.nanosec)
+    def _on_clock(self, clock: tuple[int, int]) -> None:
+        """A /clock sample (sec, nanosec: _decode_clock) moves the node's ROS time; one that is no
+        valid time (negative, or nanosec beyond a second) is refused with a warning (the first,
+        then every 100th) and counted in clock_refused, so junk on /clock cannot stop the
+        node."""
+        sec, nanosec = clock
         if sec < 0 or not 0 <= nanosec < 1_000_000_000:
             self.clock_refused += 1
             if self.clock_refused % 100 == 1:
@@ -725,7 +759,7 @@ class Node:
                     f'/clock: refused sample {self.clock_refused} (sec={sec}, nanosec={nanosec}): '
                     'not a valid time; the clock keeps its last value')
             return
-        self._clock.set_ros_time_override(Time.from_msg(msg.clock))
+        self._clock._set_ros_time_ns(sec * 1_000_000_000 + nanosec)
 
     def _on_clock_moved(self) -> None:
         """The node's clock changed (a /clock sample, in the listener thread; ROS time turned on

@@ -102,11 +102,15 @@ class Clock:
         self.wakes_executor = False     # a node's clock: its changes wake the node's executor
 
     def now(self) -> Time:
+        return Time(nanoseconds=self._now_ns(), clock_type=self.clock_type)
+
+    def _now_ns(self) -> int:
+        """now().nanoseconds without a Time object (timers ask at every executor wake-up)."""
         if self.clock_type == ClockType.STEADY_TIME:
-            return Time(nanoseconds=_time.monotonic_ns(), clock_type=self.clock_type)
+            return _time.monotonic_ns()
         if self.clock_type == ClockType.ROS_TIME and self._ros_time_active:
-            return Time(nanoseconds=self._ros_time_ns, clock_type=self.clock_type)
-        return Time(nanoseconds=_time.time_ns(), clock_type=self.clock_type)
+            return self._ros_time_ns
+        return _time.time_ns()
 
     @property
     def ros_time_is_active(self) -> bool:
@@ -121,8 +125,11 @@ class Clock:
 
     def set_ros_time_override(self, time: Time) -> None:
         """What /clock sets (it is read only while ROS time is active)."""
+        self._set_ros_time_ns(int(time.nanoseconds))
+
+    def _set_ros_time_ns(self, nanoseconds: int) -> None:
         with self._changed:
-            self._ros_time_ns = int(time.nanoseconds)
+            self._ros_time_ns = nanoseconds
             self._changed.notify_all()
         self._notify_change()
 
