@@ -86,6 +86,37 @@ def test_destroyed_subscriptions_leave_the_waitset(context) -> None:
     node.destroy_node()
 
 
+def test_spin_once_with_nothing_to_do_waits_out_its_timeout(context) -> None:
+    """rclpy.spin_once(node, timeout_sec=t) adds the node to the executor (a notify() that sets
+    the waitset's guard) and removes it after: the wait must not take that stale guard for news
+    and return at once (a `while: spin_once(node, 0.1)` loop then spun a whole core)."""
+    import time
+
+    from vizzy_runtime import rclpy_compat
+
+    node = Node(f'waitset_{uuid.uuid4().hex[:8]}', context=context,
+                start_parameter_services=False)
+    node.create_subscription(String, f'/waitset_{uuid.uuid4().hex[:8]}', lambda m: None, 10)
+    executor = SingleThreadedExecutor(context=context)
+    waits = [0]
+    run_ready = executor._run_ready
+
+    def counted() -> bool:
+        waits[0] += 1
+        return run_ready()
+
+    executor._run_ready = counted       # type: ignore[method-assign]
+    try:
+        start = time.monotonic()
+        for _ in range(3):
+            rclpy_compat.spin_once(node, executor=executor, timeout_sec=0.1)
+        # each call waited its 0.1 s (a lower bound: a loaded machine only makes it longer)
+        assert time.monotonic() - start >= 0.29
+        assert waits[0] <= 3 * 2            # at most a pass before and one after each wait
+    finally:
+        node.destroy_node()
+
+
 def test_clock_samples_are_read_in_place() -> None:
     raw = bytes(msgs.serialize(Clock(clock=msgs.get_message('builtin_interfaces/msg/Time')(
         sec=1234, nanosec=567_000_000))))

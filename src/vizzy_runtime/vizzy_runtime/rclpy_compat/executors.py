@@ -185,11 +185,23 @@ class Executor:
             timeout = 0.0
         elif threading.current_thread() is threading.main_thread():
             timeout = _SIGNAL_CHECK_S if timeout is None else min(timeout, _SIGNAL_CHECK_S)
-        try:
-            keys = waitset.wait(timeout)
-        except Exception:  # noqa: BLE001 - DDS deleted at exit: the executor stops anyway
-            self._waitset_failed, self._waitset = True, None
-            return
+        deadline = None if timeout is None else _time.monotonic() + timeout
+        while True:
+            try:
+                keys = waitset.wait(timeout)
+            except Exception:  # noqa: BLE001 - DDS deleted at exit: the executor stops anyway
+                self._waitset_failed, self._waitset = True, None
+                return
+            if keys or self.context.generation != generation or not self.context.ok() \
+                    or self._shutdown:
+                break
+            # only the guard, set by a notify() from before `generation` (rclpy.spin_once's own
+            # add_node, for one): nothing new, so wait out the rest of the timeout (as rclpy
+            # does) rather than return at once and have a spin_once loop spin the CPU
+            if deadline is not None:
+                timeout = deadline - _time.monotonic()
+                if timeout <= 0.0:
+                    break
         for key in keys:
             sub = self._watched.get(key)
             if sub is not None:
