@@ -13,7 +13,7 @@ import pytest
 
 from vizzy_runtime.process_exit import LAUNCHER_PID_ENV
 from vizzy_runtime.testing import scaled, wait_until
-from vizzy_runtime.zygote import ForkedNode, ZygoteProcess, thread_count
+from vizzy_runtime.zygote import ForkedNode, ZygoteProcess, process_running, thread_count
 
 # The stand-in node: what it does comes from the file named by argv[1] at each start ('0', '1',
 # '2': exit with it; 'kill': SIGKILL itself; 'run': print its state, then run until a signal).
@@ -39,14 +39,6 @@ def main():
 
 sys.exit(serve(main, ['node', *sys.argv[1:]]))
 '''
-
-
-def _running(pid: int) -> bool:
-    try:
-        with open(f'/proc/{pid}/stat') as f:
-            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except (OSError, IndexError):
-        return False
 
 
 class Rig:
@@ -78,7 +70,7 @@ class Rig:
     def close(self) -> None:
         self.zygote.dismiss()
         for node in self.forked:
-            if node.forked_pid and _running(node.forked_pid):
+            if node.forked_pid and process_running(node.forked_pid):
                 os.kill(node.forked_pid, signal.SIGKILL)
         if self.zygote.proc.poll() is None:
             self.zygote.proc.kill()
@@ -122,7 +114,7 @@ def test_the_zygote_reports_each_exit_and_forks_again_at_go(rig, what, code):
         node = rig.zygote.respawn()
         assert node is not None and node is rig.zygote.node
         assert node.wait(scaled(30)) == code, rig.text()
-        assert node.pid not in (first.pid, rig.zygote.proc.pid) and not _running(node.pid)
+        assert node.pid not in (first.pid, rig.zygote.proc.pid) and not process_running(node.pid)
     assert len(rig.forked) == 3 and rig.zygote.proc.poll() is None
     rig.zygote.dismiss()   # the end of stdin ends an idle zygote
     assert rig.zygote.proc.wait(scaled(30)) == 0
@@ -147,7 +139,7 @@ def test_the_node_ends_with_its_zygote(rig, sig):
     node = rig.zygote.node
     assert wait_until(lambda: 'node pid=' in rig.text(), scaled(30)), rig.text()
     os.kill(rig.zygote.proc.pid, sig)
-    assert wait_until(lambda: not _running(node.pid), scaled(30)), rig.text()
+    assert wait_until(lambda: not process_running(node.pid), scaled(30)), rig.text()
     # the stand-in node takes SIGTERM's default action (a real node stops as on Ctrl-C)
     assert node.wait(scaled(30)) == -sig, rig.text()
     assert rig.zygote.proc.wait(scaled(30)) == (128 + sig if sig == signal.SIGTERM else -sig)
@@ -163,7 +155,7 @@ def test_a_node_under_a_launcher_arms_its_death_signal_on_the_zygote(tmp_path):
         with open(f'/proc/{node.pid}/status') as f:
             assert node.poll() is None and 'State:\tS' in f.read()
         r.zygote.proc.kill()
-        assert wait_until(lambda: not _running(node.pid), scaled(30)), r.text()
+        assert wait_until(lambda: not process_running(node.pid), scaled(30)), r.text()
     finally:
         r.close()
 

@@ -132,7 +132,7 @@ def _run_node(main: Callable[[], object], argv: list[str], zygote: int) -> None:
 
 # --- the launcher's side ---------------------------------------------------------------------
 
-def _running(pid: int) -> bool:
+def process_running(pid: int) -> bool:
     """True while pid exists and is not a zombie (a process that is not our child)."""
     try:
         with open(f'/proc/{pid}/stat') as f:
@@ -161,7 +161,7 @@ class ForkedNode:
         if self.returncode is None and self.reported_code is not None:
             self.returncode = self.reported_code
         elif self.returncode is None and self.zygote.proc.poll() is not None and (
-                self.forked_pid is None or not _running(self.forked_pid)):
+                self.forked_pid is None or not process_running(self.forked_pid)):
             self.zygote.ended.wait(1.0)   # the pump may not have read the zygote's last lines
             # else the zygote ended without reporting this node's end (killed; the node got
             # SIGTERM from its death and has ended too): the zygote's status stands for it
