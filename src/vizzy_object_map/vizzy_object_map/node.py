@@ -263,7 +263,8 @@ class ObjectMapNode(Node):
             f'object map in {self._p["map_frame"]!r}: recognitions from '
             f'{self._topics[DETECTIONS_TOPIC]} (camera {self._topics[CAMERA_INFO_TOPIC]}), '
             f'objects from {self._topics[CLUSTERS_TOPIC]} and {self._topics[CYLINDERS_TOPIC]}, '
-            f'depth from {self._topics[STEREO_TOPIC]}; map on {self._objects_pub.topic_name}, '
+            f'depth from {self._topics[STEREO_TOPIC] if self._p["use_stereo_depth"] else "none"}'
+            f' (use_stereo_depth); map on {self._objects_pub.topic_name}, '
             f'{self._markers_pub.topic_name}, {self._map_pub.topic_name} every '
             f'{self._p["publish_period_s"]:g} s')
 

@@ -65,7 +65,7 @@ DEFAULT_NAMES: dict[str, set[tuple[str, str]]] = {
                          ('pub', '/mot/overlay'), ('pub', '/gaze/command')},
     'object_map': TF | {('sub', '/foveation/detections'), ('sub', '/vizzy/left/camera_info'),
                         ('sub', '/cylinders/clusters'), ('sub', '/cylinders'),
-                        ('sub', '/stereo/points'), ('sub', '/gaze/state'), ('pub', '/objects'),
+                        ('sub', '/gaze/state'), ('pub', '/objects'),
                         ('pub', '/objects/markers'), ('pub', '/objects/map'),
                         ('pub', '/gaze/command')},
 }
