@@ -13,8 +13,7 @@ publishes
 
   /cylinders          active_vision_msgs/CylinderArray, header = the cloud's
   /cylinders/markers  visualization_msgs/MarkerArray: DELETEALL, then one CYLINDER per cylinder
-                      (coloured red -> green by confidence) and a TEXT label above it; built only
-                      while something subscribes (a viewer)
+                      (red -> green by confidence), a TEXT label above; only for a subscriber
   /cylinders/clusters vision_msgs/Detection3DArray, header = the cloud's: every object the
                       segmentation found on the table, cylinder or not (cluster_array: a box
                       aligned with the table, and P(cylinder) when classified); the object map
@@ -424,8 +423,8 @@ class CylinderDetectorNode(Node):
         """From the worker thread."""
         publish_from_thread(self, self._pub, cylinder_array(header, cylinders, probabilities))
         if has_subscribers(self._marker_pub):     # for viewers only (volatile: none missed)
-            publish_from_thread(self, self._marker_pub,
-                                marker_array(header, cylinders, probabilities))
+            markers = marker_array(header, cylinders, probabilities)
+            publish_from_thread(self, self._marker_pub, markers)
 
     def _report(self, det: Detection, ms: float, shape: tuple[int, ...]) -> None:
         self._frame_ms.append(ms)

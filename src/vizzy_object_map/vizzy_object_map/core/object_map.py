@@ -51,7 +51,7 @@ DEFAULT_OBJECT_SIZE = (0.06, 0.06, 0.06)
 
 @dataclass(frozen=True)
 class MapConfig:
-    """The map's rules; each is a node parameter of the same name (see node.PARAMETERS)."""
+    """The map's rules; each is a node parameter of the same name (see parameters.PARAMETERS)."""
 
     association_radius_m: float = 0.06
     merge_radius_m: float = 0.03
