@@ -1,16 +1,16 @@
 """Stop and respawn benchmark: how long each node of the running graph takes to stop on SIGINT
 (with its work in flight), and to be back with its output flowing after a SIGKILL.
 
-Starts the shipped graph (src/vizzy_runtime/config/graph.yaml; it respawns every node and keeps
-a standby per node) with the launcher, waits until every output flows, then, node by node,
---rounds times:
+Starts the shipped graph (src/vizzy_runtime/config/graph.yaml; it respawns every node, each
+forked by its zygote, vizzy_runtime/zygote.py) with the launcher, waits until every output flows,
+then, node by node, --rounds times:
   1. SIGINT to the node's process while it works: seconds until the process has exited
      (issue 12's bound: 2 s);
-  2. wait until the respawned process publishes (and, with standbys, until the node's next standby
-     has said it is ready: imports and warm-up done), then SIGKILL it: seconds from the kill until
-     its output flows again from the next process. With a standby: the launcher's respawn_delay,
-     node construction, the first result; with --cold (no standbys, as ros2 launch respawns):
-     also the interpreter's start-up and the imports (torch, Open3D, MuJoCo).
+  2. wait until the respawned process publishes (and until its zygote is ready: imports and
+     warm-up done), then SIGKILL it: seconds from the kill until its output flows again from the
+     next process. From the zygote: the launcher's respawn_delay, a fork, node construction, the
+     first result; with --cold (no zygotes, as ros2 launch respawns): also the interpreter's
+     start-up and the imports (torch, Open3D, MuJoCo).
 Prints, last, one JSON object: stop_after_sigint_s and back_after_sigkill_s per node (max and
 median over the rounds), and their maxima over nodes.
 
