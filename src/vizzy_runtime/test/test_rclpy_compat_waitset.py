@@ -20,6 +20,19 @@ String = msgs.get_message('std_msgs/msg/String')
 Clock = msgs.get_message('rosgraph_msgs/msg/Clock')
 
 
+def _count_passes(executor: SingleThreadedExecutor) -> list[int]:
+    """[n]: the executor's passes over its nodes (_run_ready calls) so far, counted live."""
+    passes = [0]
+    run_ready = executor._run_ready
+
+    def counted() -> bool:
+        passes[0] += 1
+        return run_ready()
+
+    executor._run_ready = counted       # type: ignore[method-assign]
+    return passes
+
+
 def test_subscriptions_are_served_by_the_waitset_one_pass_a_message(context) -> None:
     topic = f'/waitset_{uuid.uuid4().hex[:8]}'
     node = Node(f'waitset_{uuid.uuid4().hex[:8]}', context=context,
@@ -30,14 +43,7 @@ def test_subscriptions_are_served_by_the_waitset_one_pass_a_message(context) -> 
     assert sub._reader._on_data is None          # no Python in Cyclone's thread per sample
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
-    passes = [0]
-    run_ready = executor._run_ready
-
-    def counted() -> bool:
-        passes[0] += 1
-        return run_ready()
-
-    executor._run_ready = counted       # type: ignore[method-assign]
+    passes = _count_passes(executor)
     done = threading.Event()
 
     def spin() -> None:                 # not the main thread: no signal-check wake-ups
@@ -98,14 +104,7 @@ def test_spin_once_with_nothing_to_do_waits_out_its_timeout(context) -> None:
                 start_parameter_services=False)
     node.create_subscription(String, f'/waitset_{uuid.uuid4().hex[:8]}', lambda m: None, 10)
     executor = SingleThreadedExecutor(context=context)
-    waits = [0]
-    run_ready = executor._run_ready
-
-    def counted() -> bool:
-        waits[0] += 1
-        return run_ready()
-
-    executor._run_ready = counted       # type: ignore[method-assign]
+    waits = _count_passes(executor)
     try:
         start = time.monotonic()
         for _ in range(3):
