@@ -92,26 +92,34 @@ def test_destroyed_subscriptions_leave_the_waitset(context) -> None:
     node.destroy_node()
 
 
-def test_spin_once_with_nothing_to_do_waits_out_its_timeout(context) -> None:
+def test_spin_once_waits_for_work_not_for_its_own_add_node(context) -> None:
     """rclpy.spin_once(node, timeout_sec=t) adds the node to the executor (a notify() that sets
     the waitset's guard) and removes it after: the wait must not take that stale guard for news
-    and return at once (a `while: spin_once(node, 0.1)` loop then spun a whole core)."""
-    import time
-
+    and return with nothing done (a `while: spin_once(node, 0.1)` loop then spun a whole core),
+    but wait, as rclpy's does, until there is work (here a message) or t has passed."""
     from vizzy_runtime import rclpy_compat
 
+    topic = f'/waitset_{uuid.uuid4().hex[:8]}'
     node = Node(f'waitset_{uuid.uuid4().hex[:8]}', context=context,
                 start_parameter_services=False)
-    node.create_subscription(String, f'/waitset_{uuid.uuid4().hex[:8]}', lambda m: None, 10)
+    got: list[str] = []
+    node.create_subscription(String, topic, lambda m: got.append(m.data), 10)
+    pub = node.create_publisher(String, topic, 10)
     executor = SingleThreadedExecutor(context=context)
-    waits = _count_passes(executor)
+    handled_at_return: list[int] = []
+
+    def spin() -> None:
+        rclpy_compat.spin_once(node, executor=executor, timeout_sec=scaled(60.0))
+        handled_at_return.append(len(got))
+
     try:
-        start = time.monotonic()
-        for _ in range(3):
-            rclpy_compat.spin_once(node, executor=executor, timeout_sec=0.1)
-        # each call waited its 0.1 s (a lower bound: a loaded machine only makes it longer)
-        assert time.monotonic() - start >= 0.29
-        assert waits[0] <= 3 * 2            # at most a pass before and one after each wait
+        assert pub.wait_for_subscribers(1, scaled(10.0))
+        spinner = threading.Thread(target=spin, daemon=True)
+        spinner.start()
+        spinner.join(0.5)                # the old executor had returned by now, having run nothing
+        pub.publish(String(data='x'))
+        spinner.join(scaled(60.0))
+        assert handled_at_return == [1]  # it returned because the message came, and ran it
     finally:
         node.destroy_node()
 

@@ -185,40 +185,37 @@ class Executor:
             timeout = 0.0
         elif threading.current_thread() is threading.main_thread():
             timeout = _SIGNAL_CHECK_S if timeout is None else min(timeout, _SIGNAL_CHECK_S)
-        deadline = None if timeout is None else _time.monotonic() + timeout
-        while True:
-            try:
-                keys = waitset.wait(timeout)
-            except Exception:  # noqa: BLE001 - DDS deleted at exit: the executor stops anyway
-                self._waitset_failed, self._waitset = True, None
-                return
-            if keys or self.context.generation != generation or not self.context.ok() \
-                    or self._shutdown:
-                break
-            # only the guard, set by a notify() from before `generation` (rclpy.spin_once's own
-            # add_node, for one): nothing new, so wait out the rest of the timeout (as rclpy
-            # does) rather than return at once and have a spin_once loop spin the CPU
-            if deadline is not None:
-                timeout = deadline - _time.monotonic()
-                if timeout <= 0.0:
-                    break
+        try:
+            keys = waitset.wait(timeout)
+        except Exception:  # noqa: BLE001 - DDS deleted at exit: the executor stops anyway
+            self._waitset_failed, self._waitset = True, None
+            return
         for key in keys:
             sub = self._watched.get(key)
             if sub is not None:
                 sub._ready = True
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
-        """Run what is ready; if nothing is, wait up to timeout_sec (None: forever) and run that."""
+        """Run what is ready; if nothing is, wait up to timeout_sec (None: forever) for work and
+        run it. As rclpy's, it returns early only for work, not for the executor's own wake-ups:
+        a wait cut short by the main thread's signal check, the topic type check or a guard set
+        before this call (rclpy.spin_once's own add_node) waits on; a notify() during the call
+        (a shutdown, a node added) ends it."""
         if not self.context.ok():
             raise ExternalShutdownException()
         generation = self.context.generation
         # (a timer due or a reader with samples: the wait below returns at once, then they run)
         if (generation != self._ran_generation or self._left_samples) and self._run_ready():
             return
-        self._wait(generation, self._wait_timeout(timeout_sec))
-        if not self.context.ok():
-            raise ExternalShutdownException()
-        self._run_ready()
+        deadline = None if timeout_sec is None else _time.monotonic() + timeout_sec
+        while True:
+            remaining = None if deadline is None else max(0.0, deadline - _time.monotonic())
+            self._wait(generation, self._wait_timeout(remaining))
+            if not self.context.ok():
+                raise ExternalShutdownException()
+            if (self._run_ready() or self._shutdown or self.context.generation != generation
+                    or (deadline is not None and _time.monotonic() >= deadline)):
+                return
 
     def spin(self) -> None:
         while self.context.ok() and not self._shutdown:
