@@ -365,7 +365,7 @@ class FoveatedSGBM:
         self.params, self.coarse_to_fine = params, coarse_to_fine
         top = min(int(max_level), coarsest_level(width, height, max_level))
         ys, xs = np.mgrid[0:height, 0:width]
-        ecc = self.eccentricity.ravel()
+        ecc = np.hypot(xs - cx, ys - cy).ravel()      # `eccentricity`, from the grid at hand
         self.levels: list[_Level] = []
         inner, lvl = 0.0, 0
         while True:
