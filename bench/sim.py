@@ -45,16 +45,6 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def _memory_mb(pid: int) -> tuple[float, float]:
-    """(RSS, PSS) of a process [MB]."""
-    rss = next(int(line.split()[1]) for line in Path(f'/proc/{pid}/status').read_text().splitlines()
-               if line.startswith('VmRSS:'))
-    pss = next(int(line.split()[1]) for line in
-               Path(f'/proc/{pid}/smaps_rollup').read_text().splitlines()
-               if line.startswith('Pss:'))
-    return rss / 1024.0, pss / 1024.0
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--scene', default='tabletop')
@@ -90,6 +80,8 @@ def main() -> int:
 
 
 def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
+    from graph_budget import memory_mb  # bench/graph_budget.py's (RSS, PSS) reader
+
     from vizzy_runtime.ros import Node, message, qos_profile_sensor_data, rclpy
     from vizzy_runtime.testing import wait_until
 
@@ -130,8 +122,10 @@ def _measure(sim: subprocess.Popen, ns: argparse.Namespace) -> int:
             rclpy.spin_once(node, timeout_sec=0.01)
             if memory and time.monotonic() >= next_sample:      # twice a second
                 next_sample = time.monotonic() + 0.5
-                rss, pss = _memory_mb(sim.pid)
-                peak['rss'], peak['pss'] = max(peak['rss'], rss), max(peak['pss'], pss)
+                sample = memory_mb(sim.pid)                     # None: the sim is gone
+                if sample is not None:
+                    peak['rss'], peak['pss'] = max(peak['rss'], sample[0]), max(peak['pss'],
+                                                                                sample[1])
 
     print(f'bench/sim: starting the sim ({ns.scene}) ...', file=sys.stderr, flush=True)
     ok = wait_until(lambda: (rclpy.spin_once(node, timeout_sec=0.01) or True) and
