@@ -22,15 +22,7 @@ from vizzy_runtime.launcher import (
     load_graph,
 )
 from vizzy_runtime.testing import STOP_GRACE_S, scaled, wait_until
-
-
-def _pid_running(pid: int) -> bool:
-    """True while pid exists and is not a zombie."""
-    try:
-        with open(f'/proc/{pid}/stat') as f:
-            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except (FileNotFoundError, ProcessLookupError, IndexError):
-        return False
+from vizzy_runtime.zygote import process_running
 
 
 def _ignore_sigint() -> None:
@@ -60,22 +52,22 @@ def test_nodes_end_when_their_launcher_is_killed(tmp_path):
             if any('[gaze_controller-' in ln and 'INFO' in ln and 'launch' not in ln
                    for ln in lines):
                 break
-        assert len(pids) == 1 and _pid_running(pids[0]), ''.join(lines)
-        assert len(zygotes) == 1 and _pid_running(zygotes[0]), ''.join(lines)
+        assert len(pids) == 1 and process_running(pids[0]), ''.join(lines)
+        assert len(zygotes) == 1 and process_running(zygotes[0]), ''.join(lines)
         proc.kill()
         proc.wait(timeout=scaled(30))
         deadline = time.monotonic() + scaled(60)
-        while any(map(_pid_running, pids + zygotes)) and time.monotonic() < deadline:
+        while any(map(process_running, pids + zygotes)) and time.monotonic() < deadline:
             time.sleep(0.2)
     finally:
         watchdog.cancel()
         if proc.poll() is None:
             proc.kill()
         for pid in pids + zygotes:
-            if _pid_running(pid):
+            if process_running(pid):
                 os.kill(pid, signal.SIGKILL)
-    assert not _pid_running(pids[0]), f'node {pids[0]} outlived its SIGKILLed launcher'
-    assert not _pid_running(zygotes[0]), f'zygote {zygotes[0]} outlived its SIGKILLed launcher'
+    assert not process_running(pids[0]), f'node {pids[0]} outlived its SIGKILLed launcher'
+    assert not process_running(zygotes[0]), f'zygote {zygotes[0]} outlived its SIGKILLed launcher'
 
 
 def test_parameter_sets_for_benchmarks() -> None:
@@ -120,7 +112,7 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
             if all(any(f'[{n}-' in ln and 'INFO' in ln and 'launch' not in ln for ln in lines)
                    for n in ('gaze_controller', 'mot_planner')):
                 break
-        assert len(pids) == 2 and all(_pid_running(p) for p in pids), ''.join(lines)
+        assert len(pids) == 2 and all(process_running(p) for p in pids), ''.join(lines)
         proc.send_signal(sig)
         out, _ = proc.communicate(timeout=scaled(120))
     finally:
@@ -132,7 +124,7 @@ def test_a_signal_to_the_launcher_stops_every_node(tmp_path, sig):
     said = ('user interrupted with ctrl-c' if sig == signal.SIGINT
             else f'stopping on {signal.Signals(sig).name}')
     assert said in text, text[-3000:]
-    assert not [p for p in pids if _pid_running(p)], f'orphaned nodes {pids}:\n{text[-3000:]}'
+    assert not [p for p in pids if process_running(p)], f'orphaned nodes {pids}:\n{text[-3000:]}'
 
 
 @pytest.mark.slow
@@ -262,7 +254,7 @@ def test_a_killed_node_is_forked_again_by_its_zygote(tmp_path):
         for _ in range(3):
             node = launcher.procs['gaze_controller']
             nodes.append(node)
-            assert node.pid != zygote.pid and _pid_running(node.pid)
+            assert node.pid != zygote.pid and process_running(node.pid)
             killed_at = time.monotonic()
             os.killpg(node.pid, signal.SIGKILL)
             assert wait_until(lambda node=node: node.poll() is not None, scaled(30))
@@ -288,7 +280,7 @@ def test_a_killed_node_is_forked_again_by_its_zygote(tmp_path):
                 f'zygote, pid [{zygote.pid}])') in text, text
     assert codes == {'gaze_controller': 0}, text
     assert launcher.standbys == {} and zygote.poll() == 0, text
-    assert not any(_pid_running(p) for p in [zygote.pid, *(n.pid for n in nodes)])
+    assert not any(process_running(p) for p in [zygote.pid, *(n.pid for n in nodes)])
 
 
 def test_respawn_standby_must_be_a_boolean(tmp_path):
