@@ -66,8 +66,6 @@ def main() -> int:
     graph.respawn_standby = not ns.cold
     for spec in graph.nodes:
         spec.respawn_standby = None
-    # standbys right away, one per second (the bench kills nodes sooner than the shipped 30 s)
-    Launcher.STANDBY_AFTER_S, Launcher.STANDBY_STAGGER_S = 0.0, 1.0
     launcher = Launcher(graph, output=log)
     readers = {n: dds.RawReader(t, ty, dds.QoS(reliable=False, depth=50))
                for n, (t, ty) in OUTPUT.items()}
