@@ -400,7 +400,6 @@ class Launcher:
         return proc
 
     def _spawn(self, name: str) -> None:
-        again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
         self._started_at[name] = time.monotonic()
         if self.forks and self.graph.standby(self._commands[name][0]):
             # a fork of the node's zygote (a fresh zygote at the first start, or if it died);
@@ -415,15 +414,19 @@ class Launcher:
             return
         proc = self._popen(name, self._commands[name][1])
         self.procs[name] = proc
-        self.output.write(f'[INFO] [launch]: process started with pid [{proc.pid}]: '
-                          f'{name}{again}\n')
+        self._report_started(name, proc.pid)
 
     def _forked(self, name: str, node: ForkedNode) -> None:
         """A zygote has forked name's node (called from its output pump)."""
         self.ready_standbys.add(node.zygote.proc.pid)
+        self._report_started(name, node.pid,
+                             f' (forked by its zygote, pid [{node.zygote.proc.pid}])')
+
+    def _report_started(self, name: str, pid: int, how: str = '') -> None:
+        """The log's "process started" line (a respawn says which)."""
         again = f' (respawn {self.respawned[name]})' if self.respawned.get(name) else ''
-        self.output.write(f'[INFO] [launch]: process started with pid [{node.pid}]: {name}{again}'
-                          f' (forked by its zygote, pid [{node.zygote.proc.pid}])\n')
+        self.output.write(f'[INFO] [launch]: process started with pid [{pid}]: {name}{again}'
+                          f'{how}\n')
 
     def _supervise(self) -> None:
         """Report each node's exit; respawn the nodes whose graph entry asks for it (after their
