@@ -102,7 +102,7 @@ class FixationPolicy:
         parameters p, went out at now: commanded(), and the nearest observed point fixated."""
         self.commanded(now, cell, int(ses.n_obs[cell]), ses.directions[cell],
                        float(p['inhibition_of_return_s']))
-        if ses.n_frames[cell] >= max(int(p.get('min_observations', 1)), 1):
+        if ses.n_frames[cell] >= observed_frames(p):
             self.nearest_fixated = min(self.nearest_fixated, float(np.linalg.norm(point)))
 
     def commanded(self, now: float, cell: int, n_obs: int, direction: np.ndarray | None = None,
@@ -141,6 +141,12 @@ def clamp_distance(point: np.ndarray, dmin: float, dmax: float) -> np.ndarray:
     return point * (min(max(dist, dmin), dmax) / max(dist, 1e-9))
 
 
+def observed_frames(p: Mapping[str, Any]) -> int:
+    """The fused frames a cell must be seen in to count as observed (min_observations, at
+    least 1): fewer, and next_fixation scores it as never seen."""
+    return max(int(p.get('min_observations', 1)), 1)
+
+
 def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int],
                   inhibited: np.ndarray | None = None,
                   nearer_than: float = math.inf) -> tuple[Decision, np.ndarray] | None:
@@ -158,7 +164,8 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
     if not np.any(candidates):
         return None
     means, covs = ses.mean, ses.cov
-    least = int(p.get('min_observations', 1))
+    least = observed_frames(p)
+    observed = ses.n_frames >= least
     if least > 1:
         # a cell seen in fewer frames is scored as never seen (stereo mismatches 0.4-0.9 m in
         # front of the eyes, from one fixation's frames, would otherwise be the nearest thing
@@ -169,20 +176,18 @@ def next_fixation(ses: SensoryEgoSphere, p: Mapping[str, Any], refused: list[int
             means[few] = float(p['prior_distance_m']) * ses.directions[few]
             covs[few] = np.eye(3) * float(p['prior_sigma_m']) ** 2
     if p.get('search_nearest', False) and math.isfinite(nearer_than):
-        seen = ses.n_frames >= max(least, 1)
-        candidates = candidates & ~(seen & (np.linalg.norm(ses.mean, axis=1) >= nearer_than))
+        candidates = candidates & ~(observed & (np.linalg.norm(ses.mean, axis=1) >= nearer_than))
         if not np.any(candidates):
             return None
     decision = choose_fixation(means, covs, p['acquisition'], float(p['ucb_alpha']),
                                candidates=candidates)
     coverage = math.radians(float(p.get('explore_coverage_deg', 0.0)))
-    if coverage > 0 and ses.n_frames[decision.cell] < max(least, 1):
-        decision = widest_unobserved(ses.directions, means,
-                                     candidates & (ses.n_frames < max(least, 1)), coverage)
+    if coverage > 0 and not observed[decision.cell]:
+        decision = widest_unobserved(ses.directions, means, candidates & ~observed, coverage)
     point = decision.fixation
     radius = float(p.get('fixation_cluster_m', 0.0))
-    if radius > 0 and ses.n_frames[decision.cell] >= max(least, 1):
-        point = cluster_centre(ses.mean, ses.n_frames >= max(least, 1), point, radius)
+    if radius > 0 and observed[decision.cell]:
+        point = cluster_centre(ses.mean, observed, point, radius)
     dmin, dmax = p['fixation_distance_m']
     return decision, clamp_distance(point, dmin, dmax)
 
