@@ -113,8 +113,9 @@ qos_profile_latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_
 
 
 def warm_up() -> None:
-    """Before a standby waits (cli.cmd_run --standby): what the runtime can prepare for a node's
-    construction without joining the network (bundled: rclpy_compat/warm_up.py; rclpy: nothing)."""
+    """Before a zygote forks its node (cli.cmd_run --zygote): what the runtime can prepare for a
+    node's construction without joining the network (bundled: rclpy_compat/warm_up.py; rclpy:
+    nothing)."""
     if not USING_REAL_ROS:
         from .rclpy_compat.warm_up import warm_up as _warm_up
         _warm_up()

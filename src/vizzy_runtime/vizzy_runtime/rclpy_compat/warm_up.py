@@ -1,8 +1,9 @@
-"""Work a node's construction does first, done ahead by a standby (`vizzy run --standby`, the
-launcher's respawn_standby): Cyclone attaches XTypes type information to every topic, and
-cyclonedds-python computes it in Python, about 25 ms per type (0.75 s of the sim's 3.3 s start on a
-loaded machine). It is cached on each type's class, so computing it before `go` takes it off the
-respawn. No participant is created: a standby stays invisible on the network."""
+"""Work a node's construction does first, done ahead by its zygote (`vizzy run --zygote`, the
+launcher's respawn_standby; zygote.py): Cyclone attaches XTypes type information to every topic,
+and cyclonedds-python computes it in Python, about 25 ms per type (0.75 s of the sim's 3.3 s start
+on a loaded machine). It is cached on each type's class, so computing it before the fork takes it
+off every start and respawn. No participant is created: the zygote stays invisible on the network
+and starts no thread (fork() copies only the forking one)."""
 
 from __future__ import annotations
 
