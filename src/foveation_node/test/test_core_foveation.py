@@ -213,6 +213,22 @@ def test_a_moving_fixation_gets_its_own_kernels() -> None:
     assert np.array_equal(foveator.foveate(image, a), first)
 
 
+def test_a_window_model_s_pass_2_keeps_the_frame_s_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
+    # foveate_many with regions builds no H_k grids: the next frame's foveate reuses its own
+    image: np.ndarray = np.clip(pink_noise(W, H, channels=3, seed=6), 0, 255).astype(np.uint8)
+    foveator = Foveator(W, H)
+    fixation = (W / 2, H / 2)
+    first = foveator.foveate(image, fixation).copy()
+    built: list[tuple[float, float]] = []
+    kernels = foveator._kernels
+    monkeypatch.setattr(foveator, '_kernels', lambda buf, channels, u0, v0: (
+        built.append((u0, v0)), kernels(buf, channels, u0, v0))[1])
+    foveator.foveate_many(image, [(40.0, 30.0), (W - 20.0, H - 10.0)],
+                          [(0, 0, 80, 60), (W - 60, H - 50, W, H)])
+    assert np.array_equal(foveator.foveate(image, fixation), first)
+    assert built == []
+
+
 @pytest.mark.parametrize('bad, message', [
     (np.zeros((0, 10, 3), np.uint8), 'empty'),
     (np.zeros((H, W, 3), np.int32), 'dtype'),

@@ -252,12 +252,12 @@ class Foveator:
         if not points:
             return []
         buf = self._buffers(channels)
-        buf.kernels_for = None                  # _kernels below overwrites foveate's
         pyramid = self._pyramid(self._plane(image), buf)
         depth = _CV_DEPTH[image.dtype.type]
-        if regions is not None:
+        if regions is not None:     # its own kernels: foveate's stay cached for the next frame
             return [self._foveate_region(image, pyramid, point, region, depth, channels)
                     for point, region in zip(points, regions, strict=True)]
+        buf.kernels_for = None                  # _kernels below overwrites foveate's
         top = self.levels - 1
         expanded_top = cv2.pyrUp(pyramid[top + 1], dstsize=self.level_sizes[top])
         laps = [cv2.subtract(pyramid[k], expanded_top if k == top else cv2.pyrUp(
