@@ -408,8 +408,9 @@ main = main_for(SimNode, cannot_start=(RendererUnavailable, SceneUnavailable))
 
 
 def standby_prepare() -> None:
-    """For a standby (`vizzy run --standby`): probe the OpenGL backend now (a child process,
-    0.8 s on a loaded machine); select_backend caches the answer for the node's construction."""
+    """For the zygote (`vizzy run --zygote`), before it forks the node: probe the OpenGL backend
+    now (in a child process, 0.8 s on a loaded machine); select_backend caches the answer for the
+    node's construction."""
     with contextlib.suppress(RendererUnavailable, ValueError):   # the node says why when it starts
         select_backend(os.environ.get('MUJOCO_GL', 'auto') or 'auto')
 
